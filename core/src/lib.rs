@@ -1,0 +1,22 @@
+//! skyframe's flight core.
+//!
+//! `no_std`, no heap, no OS: everything here runs inside the cyclic executive's frames and
+//! never blocks. The data's path through the crate:
+//!
+//! - [`schedule`]: the frame table, built at compile time from `schedule.toml`;
+//! - [`executive`]: steps the tasks frame by frame, measures them, applies overrun policies,
+//!   keeps health and emits one timing record per frame;
+//! - [`comm`]: the lock-free ways tasks hand data to each other and to the shell.
+//!
+//! The OS side (threads, files, sockets, timers) lives in `skyframe-shell` and the
+//! `platform-*` crates, behind the traits in [`executive::clock`] and [`comm`].
+#![no_std]
+
+#[cfg(any(test, feature = "schedule-file"))]
+extern crate std;
+
+#[macro_use]
+pub mod facade;
+pub mod comm;
+pub mod executive;
+pub mod schedule;

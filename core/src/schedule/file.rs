@@ -1,0 +1,91 @@
+//! `schedule.toml`, the file people edit. Parsed on the host only: by the core's build script
+//! (included with `#[path]`) and, behind the `schedule-file` feature, by
+//! `skyframe check-schedule`.
+
+use super::analysis::{ExecutiveInput, OverrunPolicy, TaskInput};
+use serde::Deserialize;
+use std::string::{String, ToString};
+use std::vec::Vec;
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ScheduleFile {
+    pub executive: ExecutiveSection,
+    pub tasks: Vec<TaskEntry>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ExecutiveSection {
+    /// Time every minor frame keeps free for the executive and jitter (µs).
+    pub margin_us: u64,
+    /// Start latency above which a frame counts as late (µs).
+    pub late_start_us: u64,
+    /// Minor frame length; the gcd of the periods when absent.
+    #[serde(default)]
+    pub minor_frame_ms: Option<u64>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TaskEntry {
+    pub name: String,
+    pub period_ms: u64,
+    #[serde(default)]
+    pub offset_ms: u64,
+    pub budget_us: u64,
+    pub on_overrun: String,
+    #[serde(default)]
+    pub after: Vec<String>,
+}
+
+const MS: u64 = 1_000_000;
+const US: u64 = 1_000;
+
+impl ScheduleFile {
+    /// Parses the text of a schedule file; the error says the line and column.
+    pub fn parse(text: &str) -> Result<Self, String> {
+        let file: Self = toml::from_str(text).map_err(|e| e.to_string())?;
+        for t in &file.tasks {
+            if OverrunPolicy::parse(&t.on_overrun).is_none() {
+                return Err(std::format!(
+                    "task `{}`: on_overrun = \"{}\" is not one of log, skip, reset",
+                    t.name,
+                    t.on_overrun
+                ));
+            }
+        }
+        Ok(file)
+    }
+
+    pub fn executive_input(&self) -> ExecutiveInput {
+        ExecutiveInput {
+            margin_ns: self.executive.margin_us.saturating_mul(US),
+            late_start_ns: self.executive.late_start_us.saturating_mul(US),
+            minor_frame_ns: self.executive.minor_frame_ms.map(|m| m.saturating_mul(MS)),
+        }
+    }
+
+    /// Calls `f` with the tasks in the analysis' terms (times in ns).
+    pub fn with_inputs<R>(&self, f: impl FnOnce(&[TaskInput<'_>]) -> R) -> R {
+        let afters: Vec<Vec<&str>> = self
+            .tasks
+            .iter()
+            .map(|t| t.after.iter().map(String::as_str).collect())
+            .collect();
+        let inputs: Vec<TaskInput<'_>> = self
+            .tasks
+            .iter()
+            .zip(&afters)
+            .map(|(t, after)| TaskInput {
+                name: &t.name,
+                period_ns: t.period_ms.saturating_mul(MS),
+                offset_ns: t.offset_ms.saturating_mul(MS),
+                budget_ns: t.budget_us.saturating_mul(US),
+                on_overrun: OverrunPolicy::parse(&t.on_overrun).unwrap_or(OverrunPolicy::Log),
+                after,
+            })
+            .collect();
+        f(&inputs)
+    }
+}
