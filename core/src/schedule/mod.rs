@@ -60,3 +60,6 @@ impl FrameTable {
 }
 
 include!(concat!(env!("OUT_DIR"), "/frame_table.rs"));
+
+#[cfg(test)]
+mod tests;
