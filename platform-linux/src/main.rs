@@ -1,0 +1,5 @@
+//! `skyframe` on Linux.
+
+fn main() -> std::process::ExitCode {
+    skyframe_shell::cli::main(skyframe_linux::Linux)
+}

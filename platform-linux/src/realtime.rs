@@ -1,0 +1,48 @@
+//! Real-time settings of the executive thread, each best effort.
+
+use nix::sched::{CpuSet, sched_setaffinity};
+use nix::sys::mman::{MlockAllFlags, mlockall};
+use nix::unistd::Pid;
+use skyframe_shell::platform::{RtConfig, RtReport};
+
+/// Applies `config` to the calling thread and the process; reports what each setting came to.
+pub fn apply(config: &RtConfig) -> RtReport {
+    RtReport {
+        sched_fifo: config.fifo_priority.map(set_fifo),
+        mlockall: config.lock_memory.then(|| {
+            mlockall(MlockAllFlags::MCL_CURRENT | MlockAllFlags::MCL_FUTURE)
+                .map_err(|e| e.desc().to_string())
+        }),
+        cpu: config.cpu.map(pin_to_cpu),
+        timer_slack_ns: config.timer_slack_ns.map(|ns| {
+            nix::sys::prctl::set_timerslack(ns as libc::c_ulong)
+                .map(|()| ns)
+                .map_err(|e| e.desc().to_string())
+        }),
+    }
+}
+
+fn pin_to_cpu(cpu: usize) -> Result<usize, String> {
+    let mut set = CpuSet::new();
+    set.set(cpu).map_err(|e| format!("CPU {cpu}: {}", e.desc()))?;
+    sched_setaffinity(Pid::from_raw(0), &set)
+        .map(|()| cpu)
+        .map_err(|e| format!("CPU {cpu}: {}", e.desc()))
+}
+
+/// `SCHED_FIFO` at `priority` for the calling thread. nix has no `sched_setscheduler`, so this
+/// is the one place the platform calls libc directly.
+#[allow(unsafe_code)]
+fn set_fifo(priority: u8) -> Result<u8, String> {
+    let param = libc::sched_param {
+        sched_priority: libc::c_int::from(priority),
+    };
+    // SAFETY: `param` is a valid, initialised sched_param that outlives the call; pid 0 means
+    // the calling thread; the call has no other memory effects.
+    let rc = unsafe { libc::sched_setscheduler(0, libc::SCHED_FIFO, &param) };
+    if rc == 0 {
+        Ok(priority)
+    } else {
+        Err(std::io::Error::last_os_error().to_string())
+    }
+}

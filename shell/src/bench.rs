@@ -1,0 +1,204 @@
+//! `skyframe bench`: what the executive costs, measured against the bare timer.
+//!
+//! Two runs in one command, on the same thread with the same real-time settings and period:
+//! a bare loop that only sleeps to each absolute release and records how late it woke, and
+//! the executive flying the shipped frame table with idle tasks. The ratio of their wake-up
+//! latencies shows what the executive adds over the machine's floor; the executive's own time
+//! per frame (frame work less the tasks' time) shows its overhead.
+
+use crate::host::{RunOptions, run_executive};
+use crate::idle::idle_tasks;
+use crate::platform::{Platform, RtConfig, RtReport};
+use crate::stats::{Distribution, ratio};
+use serde::Serialize;
+use skyframe_core::executive::{FaultPlan, FrameTimer, Task};
+use skyframe_core::schedule::FrameTable;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Duration;
+
+#[derive(Debug, Serialize)]
+pub struct ExecutiveFigures {
+    pub frames: u64,
+    pub wakeup_latency_us: Distribution,
+    pub overhead_ns_per_frame: Distribution,
+    pub overruns: OverrunFigures,
+    pub timing_records_dropped: u64,
+}
+
+#[derive(Debug, Default, Serialize)]
+pub struct OverrunFigures {
+    pub budget: u64,
+    pub frame: u64,
+    pub late_frames: u64,
+    pub missed_frames: u64,
+}
+
+#[derive(Debug, Serialize)]
+pub struct BareFigures {
+    pub wakeups: u64,
+    pub wakeup_latency_us: Distribution,
+}
+
+#[derive(Debug, Serialize)]
+pub struct LatencyRatio {
+    pub p50: Option<f64>,
+    pub p99: Option<f64>,
+    pub p999: Option<f64>,
+    pub max: Option<f64>,
+}
+
+#[derive(Debug, Serialize)]
+pub struct BenchReport {
+    pub platform: &'static str,
+    pub seconds_each: f64,
+    pub minor_frame_us: u64,
+    pub tasks: usize,
+    pub realtime: RtReport,
+    pub bare_clock_nanosleep: BareFigures,
+    pub executive: ExecutiveFigures,
+    /// Executive wake-up latency / bare loop wake-up latency.
+    pub latency_ratio_executive_to_bare: LatencyRatio,
+}
+
+/// Sleeps to each absolute release `period_ns` apart for `duration` and records how late each
+/// wake-up was, in ns.
+pub fn bare_sleep_loop<T: FrameTimer>(
+    timer: &T,
+    period_ns: u64,
+    duration: Duration,
+    stop: &AtomicBool,
+) -> Vec<u64> {
+    let start = timer.now_ns() + period_ns;
+    let end = start.saturating_add(u64::try_from(duration.as_nanos()).unwrap_or(u64::MAX));
+    let mut latencies = Vec::with_capacity((duration.as_nanos() / u128::from(period_ns.max(1))) as usize + 1);
+    let mut release = start;
+    while release < end && !stop.load(Ordering::Relaxed) {
+        timer.sleep_until(release);
+        latencies.push(timer.now_ns().saturating_sub(release));
+        release += period_ns;
+    }
+    latencies
+}
+
+pub fn run<P: Platform>(
+    platform: &P,
+    table: &'static FrameTable,
+    seconds: f64,
+    realtime: &RtConfig,
+    faults: FaultPlan,
+    stop: &AtomicBool,
+) -> Result<BenchReport, String> {
+    let each = Duration::from_secs_f64(seconds.max(0.0));
+    let rt_report = platform.make_realtime(realtime);
+
+    let timer = platform.timer();
+    let mut bare = bare_sleep_loop(&timer, table.minor_frame_ns, each, stop);
+    let bare_latency = Distribution::of(&mut bare).scaled(1e-3);
+
+    let mut idle = idle_tasks(table.tasks.len());
+    let mut tasks: Vec<&mut dyn Task> = idle.iter_mut().map(|t| t as &mut dyn Task).collect();
+    let mut latencies = Vec::new();
+    let mut overheads = Vec::new();
+    let summary = run_executive(
+        platform,
+        table,
+        &mut tasks,
+        RunOptions {
+            duration: Some(each),
+            faults,
+            realtime: realtime.clone(),
+            stop,
+        },
+        |record| {
+            latencies.push(u64::from(record.start_latency_ns));
+            overheads.push(u64::from(record.overhead_ns));
+        },
+    )
+    .map_err(|e| format!("the executive did not start: {e:?}"))?;
+    let exec_latency = Distribution::of(&mut latencies).scaled(1e-3);
+
+    let overruns = summary
+        .tasks
+        .iter()
+        .fold(OverrunFigures::default(), |mut o, t| {
+            o.budget += u64::from(t.overruns.budget);
+            o.frame += u64::from(t.overruns.frame);
+            o
+        });
+    Ok(BenchReport {
+        platform: platform.name(),
+        seconds_each: each.as_secs_f64(),
+        minor_frame_us: table.minor_frame_ns / 1000,
+        tasks: table.tasks.len(),
+        realtime: rt_report,
+        bare_clock_nanosleep: BareFigures {
+            wakeups: bare_latency.count as u64,
+            wakeup_latency_us: bare_latency,
+        },
+        executive: ExecutiveFigures {
+            frames: summary.frames.frames,
+            wakeup_latency_us: exec_latency,
+            overhead_ns_per_frame: Distribution::of(&mut overheads),
+            overruns: OverrunFigures {
+                late_frames: summary.frames.late,
+                missed_frames: summary.frames.missed,
+                ..overruns
+            },
+            timing_records_dropped: summary.frames.timing_records_dropped,
+        },
+        latency_ratio_executive_to_bare: LatencyRatio {
+            p50: ratio(exec_latency.p50, bare_latency.p50),
+            p99: ratio(exec_latency.p99, bare_latency.p99),
+            p999: ratio(exec_latency.p999, bare_latency.p999),
+            max: ratio(exec_latency.max, bare_latency.max),
+        },
+    })
+}
+
+/// The report for people.
+pub fn render_text(r: &BenchReport) -> String {
+    let d = |x: &Distribution| {
+        format!(
+            "p50 {:.1}  p99 {:.1}  p99.9 {:.1}  max {:.1}",
+            x.p50, x.p99, x.p999, x.max
+        )
+    };
+    let refusals = r.realtime.refusals();
+    let mut s = format!(
+        "platform {}, minor frame {} us, {} tasks, {:.1} s per run\n",
+        r.platform, r.minor_frame_us, r.tasks, r.seconds_each
+    );
+    if !refusals.is_empty() {
+        s += &format!("real-time settings: {}\n", refusals.join("; "));
+    }
+    s += &format!(
+        "bare clock_nanosleep  wake-up latency us: {}  ({} wake-ups)\n",
+        d(&r.bare_clock_nanosleep.wakeup_latency_us),
+        r.bare_clock_nanosleep.wakeups
+    );
+    s += &format!(
+        "executive             wake-up latency us: {}  ({} frames)\n",
+        d(&r.executive.wakeup_latency_us),
+        r.executive.frames
+    );
+    s += &format!(
+        "executive overhead ns per frame: mean {:.0}  {}\n",
+        r.executive.overhead_ns_per_frame.mean,
+        d(&r.executive.overhead_ns_per_frame)
+    );
+    let o = &r.executive.overruns;
+    s += &format!(
+        "overruns: budget {}  frame {}  late frames {}  missed frames {}\n",
+        o.budget, o.frame, o.late_frames, o.missed_frames
+    );
+    let q = &r.latency_ratio_executive_to_bare;
+    let f = |x: Option<f64>| x.map_or("-".to_string(), |v| format!("{v:.2}"));
+    s += &format!(
+        "latency ratio executive/bare: p50 {}  p99 {}  p99.9 {}  max {}\n",
+        f(q.p50),
+        f(q.p99),
+        f(q.p999),
+        f(q.max)
+    );
+    s
+}

@@ -1,0 +1,194 @@
+//! `skyframe check-schedule [FILE]`: the build script's validator, at run time, with the
+//! frame table printed for people.
+
+use skyframe_core::schedule::analysis::{
+    Analysis, ErrorReport, ExecutiveInput, TASK_CATALOGUE, TaskInput, analyse,
+};
+use skyframe_core::schedule::file::ScheduleFile;
+use std::fmt::Write as _;
+use std::path::Path;
+
+/// The outcome of checking a file: the text to print and whether the schedule is feasible.
+pub struct Checked {
+    pub report: String,
+    pub feasible: bool,
+}
+
+/// Reads and checks a schedule file. `Err` is a one-line reason the file could not be read
+/// or parsed (the caller exits 2); an infeasible schedule is `Ok` with `feasible: false`.
+pub fn check_file(path: &Path) -> Result<Checked, String> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+    let file = ScheduleFile::parse(&text).map_err(|e| {
+        // toml's message spans lines (a caret under the spot); the first names line and column.
+        let first = e.lines().next().unwrap_or("invalid TOML");
+        let detail = e.lines().rev().find(|l| !l.trim().is_empty()).unwrap_or("");
+        if detail == first {
+            format!("{}: {first}", path.display())
+        } else {
+            format!("{}: {first}: {}", path.display(), detail.trim())
+        }
+    })?;
+    let exec = file.executive_input();
+    Ok(file.with_inputs(|tasks| match analyse(tasks, &exec, TASK_CATALOGUE) {
+        Ok(analysis) => Checked {
+            report: render(path, tasks, &exec, &analysis),
+            feasible: true,
+        },
+        Err(error) => Checked {
+            report: format!(
+                "{}: infeasible schedule: {}\n",
+                path.display(),
+                ErrorReport { error, tasks }
+            ),
+            feasible: false,
+        },
+    }))
+}
+
+fn ms(ns: u64) -> String {
+    if ns % 1_000_000 == 0 {
+        format!("{} ms", ns / 1_000_000)
+    } else {
+        format!("{:.1} ms", ns as f64 / 1e6)
+    }
+}
+
+fn render(path: &Path, tasks: &[TaskInput<'_>], exec: &ExecutiveInput, a: &Analysis) -> String {
+    let mut s = String::new();
+    let (busiest, busiest_load) = a.busiest_frame();
+    let _ = writeln!(
+        s,
+        "{}: {} tasks, minor frame {}, major frame {} ({} minor frames), margin {} us",
+        path.display(),
+        tasks.len(),
+        ms(a.minor_frame_ns),
+        ms(a.major_frame_ns),
+        a.minor_frames,
+        exec.margin_ns / 1000
+    );
+    let _ = writeln!(
+        s,
+        "utilisation {:.1} %; busiest frame {busiest}: {} us of {} us available ({:.1} % of the frame)",
+        a.utilisation_ppm as f64 / 1e4,
+        busiest_load / 1000,
+        a.frame_limit_ns / 1000,
+        busiest_load as f64 * 100.0 / a.minor_frame_ns as f64,
+    );
+    let _ = writeln!(s, "feasible: every frame fits, every response time is within its period\n");
+
+    let _ = writeln!(
+        s,
+        "{:<4} {:<10} {:>9} {:>9} {:>9} {:<6} {:<12} {:>6} {:>11}",
+        "run", "task", "period", "offset", "budget", "policy", "after", "U %", "response us"
+    );
+    let order = a.order.iter().take(a.task_count).map(|&i| usize::from(i));
+    for (position, i) in order.clone().enumerate() {
+        let Some(t) = tasks.get(i) else { continue };
+        let after = if t.after.is_empty() {
+            "-".to_string()
+        } else {
+            t.after.join(",")
+        };
+        let _ = writeln!(
+            s,
+            "{:<4} {:<10} {:>9} {:>9} {:>9} {:<6} {:<12} {:>6.2} {:>11}",
+            position + 1,
+            t.name,
+            ms(t.period_ns),
+            ms(t.offset_ns),
+            format!("{} us", t.budget_ns / 1000),
+            t.on_overrun.as_str(),
+            after,
+            t.budget_ns as f64 * 100.0 / t.period_ns as f64,
+            a.response_ns.get(i).copied().unwrap_or(0) / 1000,
+        );
+    }
+
+    let _ = write!(s, "\n{:>5} {:>9} ", "frame", "start");
+    let names: Vec<&str> = order.clone().filter_map(|i| tasks.get(i).map(|t| t.name)).collect();
+    for name in &names {
+        let _ = write!(s, " {name}");
+    }
+    let _ = writeln!(s, " {:>8} {:>6} {:>8}", "load us", "load %", "slack us");
+    for frame in 0..a.minor_frames {
+        let set = a.frame_tasks.get(frame).copied().unwrap_or(0);
+        let load = a.frame_load_ns.get(frame).copied().unwrap_or(0);
+        let _ = write!(s, "{frame:>5} {:>9} ", ms(frame as u64 * a.minor_frame_ns));
+        for (name, i) in names.iter().zip(order.clone()) {
+            let mark = if set & (1 << i) != 0 { "#" } else { "." };
+            let _ = write!(s, " {mark:^width$}", width = name.len());
+        }
+        let _ = writeln!(
+            s,
+            " {:>8} {:>6.1} {:>8}",
+            load / 1000,
+            load as f64 * 100.0 / a.minor_frame_ns as f64,
+            (a.minor_frame_ns - load) / 1000
+        );
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn write(name: &str, text: &str) -> std::path::PathBuf {
+        let dir = std::env::temp_dir().join(format!("skyframe-check-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("temp dir");
+        let path = dir.join(name);
+        std::fs::write(&path, text).expect("write schedule");
+        path
+    }
+
+    #[test]
+    fn shipped_schedule_prints_every_frame_and_task() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../schedule.toml");
+        let checked = check_file(&path).expect("readable");
+        assert!(checked.feasible, "{}", checked.report);
+        let r = &checked.report;
+        assert!(r.contains("8 tasks, minor frame 10 ms, major frame 100 ms (10 minor frames)"));
+        assert!(r.contains("utilisation 29.8 %"));
+        // imu's row, then the frame rows with imu in every frame.
+        assert!(r.lines().any(|l| l.starts_with("1    imu ")));
+        let frames: Vec<&str> = r.lines().filter(|l| l.trim_start().starts_with(char::is_numeric) && l.contains(" ms ")).collect();
+        assert!(frames.len() >= 10);
+    }
+
+    #[test]
+    fn over_full_frame_is_infeasible_and_named() {
+        let path = write(
+            "overfull.toml",
+            r#"
+tasks = [
+  { name = "imu", period_ms = 10, budget_us = 6000, on_overrun = "log" },
+  { name = "gps", period_ms = 100, offset_ms = 40, budget_us = 3500, on_overrun = "log" },
+]
+[executive]
+margin_us = 1000
+late_start_us = 500
+"#,
+        );
+        let checked = check_file(&path).expect("readable");
+        assert!(!checked.feasible);
+        assert!(
+            checked.report.contains("minor frame 4 is over-full: budgets 9500 us > frame less margin 9 ms (tasks: imu, gps)"),
+            "{}",
+            checked.report
+        );
+    }
+
+    #[test]
+    fn unreadable_and_malformed_files_say_where() {
+        let missing = check_file(Path::new("/nonexistent/schedule.toml")).err().expect("error");
+        assert!(missing.starts_with("cannot read /nonexistent/schedule.toml"), "{missing}");
+        let path = write("typo.toml", "tasks = []\n[executive]\nmargin_us = 1\nlate_start_us = 1\nslack = 3\n");
+        let e = check_file(&path).err().expect("error");
+        assert!(e.contains("typo.toml") && e.contains("line 5") && e.contains("slack"), "{e}");
+        assert!(!e.contains('\n'), "one line: {e}");
+        let path = write("policy.toml", "tasks = [{ name = \"imu\", period_ms = 10, budget_us = 1, on_overrun = \"panic\" }]\n[executive]\nmargin_us = 1\nlate_start_us = 1\n");
+        let e = check_file(&path).err().expect("error");
+        assert!(e.contains("on_overrun = \"panic\""), "{e}");
+    }
+}

@@ -1,0 +1,306 @@
+//! The `skyframe` command line, shared by every platform's binary.
+//!
+//! Exit codes: 0 success; 1 the thing checked or run failed (infeasible schedule, executive
+//! refused to start); 2 bad usage or unreadable input (clap uses 2 as well).
+
+use crate::bench;
+use crate::check_schedule::check_file;
+use crate::host::{RunOptions, RunSummary, StopReason, run_executive, stop_on_signals};
+use crate::idle::idle_tasks;
+use crate::platform::{Platform, RtConfig};
+use clap::{Args, Parser, Subcommand};
+use skyframe_core::executive::{FaultPlan, OverrunInjection, Task};
+use skyframe_core::schedule::{FrameTable, SHIPPED};
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::sync::Arc;
+use std::sync::atomic::AtomicBool;
+use std::time::Duration;
+
+#[derive(Parser, Debug)]
+#[command(
+    name = "skyframe",
+    version,
+    about = "Flight software for small research UAVs: a static-schedule executive, its \
+             simulator and its tools",
+    after_help = "The frame table is compiled in from schedule.toml; `skyframe check-schedule` \
+                  shows it."
+)]
+pub struct Cli {
+    /// Say more on stderr (info-level messages).
+    #[arg(short, long, global = true)]
+    pub verbose: bool,
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Fly the simulated airplane (until the simulator lands: the executive with idle tasks).
+    Sim(SimArgs),
+    /// Validate a schedule file and print its frame table, load and slack.
+    CheckSchedule {
+        /// The schedule to check.
+        #[arg(default_value = "schedule.toml")]
+        file: PathBuf,
+    },
+    /// Measure the executive's wake-up latency and overhead against a bare timer loop.
+    Bench(BenchArgs),
+}
+
+#[derive(Args, Debug, Clone)]
+pub struct RealtimeArgs {
+    /// SCHED_FIFO priority of the executive thread (1-99); 0 keeps the default scheduler.
+    #[arg(long, default_value_t = 80, value_parser = clap::value_parser!(u8).range(0..=99))]
+    pub priority: u8,
+    /// Pin the executive thread to this CPU.
+    #[arg(long)]
+    pub cpu: Option<usize>,
+    /// Do not lock memory with mlockall.
+    #[arg(long)]
+    pub no_mlockall: bool,
+}
+
+impl RealtimeArgs {
+    pub fn config(&self) -> RtConfig {
+        RtConfig {
+            fifo_priority: (self.priority > 0).then_some(self.priority),
+            lock_memory: !self.no_mlockall,
+            cpu: self.cpu,
+            ..RtConfig::default()
+        }
+    }
+}
+
+#[derive(Args, Debug)]
+pub struct SimArgs {
+    /// How long to fly, in seconds.
+    #[arg(long, default_value_t = 10.0, value_parser = parse_seconds)]
+    pub duration: f64,
+    /// Make a task overrun on purpose: TASK:EXTRA_US@FROM..TO (minor frames since start),
+    /// e.g. imu:12000@100..110. Repeatable.
+    #[arg(long = "inject-overrun", value_name = "SPEC", value_parser = parse_injection)]
+    pub inject_overrun: Vec<Injection>,
+    #[command(flatten)]
+    pub realtime: RealtimeArgs,
+}
+
+#[derive(Args, Debug)]
+pub struct BenchArgs {
+    /// Seconds for each of the two runs (bare loop, executive).
+    #[arg(long, default_value_t = 10.0, value_parser = parse_seconds)]
+    pub seconds: f64,
+    /// Print one JSON object instead of the text report.
+    #[arg(long)]
+    pub json: bool,
+    /// As for `sim`: TASK:EXTRA_US@FROM..TO. Repeatable.
+    #[arg(long = "inject-overrun", value_name = "SPEC", value_parser = parse_injection)]
+    pub inject_overrun: Vec<Injection>,
+    #[command(flatten)]
+    pub realtime: RealtimeArgs,
+}
+
+/// `--inject-overrun` as typed; resolved against the frame table later.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Injection {
+    pub task: String,
+    pub extra_us: u64,
+    pub from_frame: u64,
+    pub to_frame: u64,
+}
+
+fn parse_seconds(text: &str) -> Result<f64, String> {
+    match text.parse::<f64>() {
+        Ok(s) if s.is_finite() && s >= 0.0 && s < 1e9 => Ok(s),
+        _ => Err(format!("`{text}` is not a number of seconds")),
+    }
+}
+
+pub fn parse_injection(text: &str) -> Result<Injection, String> {
+    let bad = || format!("`{text}` is not TASK:EXTRA_US@FROM..TO (e.g. imu:12000@100..110)");
+    let (task, rest) = text.split_once(':').ok_or_else(bad)?;
+    let (extra, frames) = rest.split_once('@').ok_or_else(bad)?;
+    let (from, to) = frames.split_once("..").ok_or_else(bad)?;
+    let number = |s: &str| s.trim().parse::<u64>().map_err(|_| bad());
+    let injection = Injection {
+        task: task.trim().to_string(),
+        extra_us: number(extra)?,
+        from_frame: number(from)?,
+        to_frame: number(to)?,
+    };
+    if injection.task.is_empty() || injection.to_frame <= injection.from_frame {
+        return Err(bad());
+    }
+    Ok(injection)
+}
+
+/// Turns typed injections into the executive's fault plan, naming the first unknown task.
+pub fn fault_plan(table: &FrameTable, injections: &[Injection]) -> Result<FaultPlan, String> {
+    let mut plan = FaultPlan::new();
+    for i in injections {
+        let task = table.task_index(&i.task).ok_or_else(|| {
+            let names: Vec<&str> = table.tasks.iter().map(|t| t.name).collect();
+            format!("--inject-overrun: no task `{}` in the schedule ({})", i.task, names.join(", "))
+        })?;
+        plan.push(OverrunInjection {
+            task,
+            extra_ns: i.extra_us.saturating_mul(1000),
+            from_frame: i.from_frame,
+            to_frame: i.to_frame,
+        })
+        .map_err(|_| "--inject-overrun: too many injections (8 at most)".to_string())?;
+    }
+    Ok(plan)
+}
+
+/// Parses the command line and runs it on `platform`.
+pub fn main<P: Platform>(platform: P) -> ExitCode {
+    let cli = Cli::parse();
+    let level = if cli.verbose { "info" } else { "warn" };
+    env_logger::Builder::from_env(env_logger::Env::default().default_filter_or(level))
+        .format_timestamp(None)
+        .init();
+    match run(&platform, cli.command) {
+        Ok(code) => code,
+        Err(message) => {
+            eprintln!("skyframe: {message}");
+            ExitCode::from(2)
+        }
+    }
+}
+
+fn stop_flag() -> Result<Arc<AtomicBool>, String> {
+    let stop = Arc::new(AtomicBool::new(false));
+    stop_on_signals(&stop).map_err(|e| format!("cannot install signal handlers: {e}"))?;
+    Ok(stop)
+}
+
+fn run<P: Platform>(platform: &P, command: Command) -> Result<ExitCode, String> {
+    match command {
+        Command::CheckSchedule { file } => {
+            let checked = check_file(&file)?;
+            if checked.feasible {
+                print!("{}", checked.report);
+                Ok(ExitCode::SUCCESS)
+            } else {
+                eprint!("{}", checked.report);
+                Ok(ExitCode::from(1))
+            }
+        }
+        Command::Bench(args) => {
+            let faults = fault_plan(&SHIPPED, &args.inject_overrun)?;
+            let stop = stop_flag()?;
+            let report = bench::run(
+                platform,
+                &SHIPPED,
+                args.seconds,
+                &args.realtime.config(),
+                faults,
+                &stop,
+            )
+            .map_err(|e| format!("bench: {e}"))?;
+            if args.json {
+                let json = serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?;
+                println!("{json}");
+            } else {
+                print!("{}", bench::render_text(&report));
+            }
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::Sim(args) => {
+            let faults = fault_plan(&SHIPPED, &args.inject_overrun)?;
+            let stop = stop_flag()?;
+            eprintln!(
+                "skyframe sim: the simulated airplane is not built yet (issue 5); flying the \
+                 executive with idle tasks for {} s",
+                args.duration
+            );
+            let mut idle = idle_tasks(SHIPPED.tasks.len());
+            let mut tasks: Vec<&mut dyn Task> = idle.iter_mut().map(|t| t as &mut dyn Task).collect();
+            let summary = run_executive(
+                platform,
+                &SHIPPED,
+                &mut tasks,
+                RunOptions {
+                    duration: Some(Duration::from_secs_f64(args.duration)),
+                    faults,
+                    realtime: args.realtime.config(),
+                    stop: &stop,
+                },
+                |_| {},
+            )
+            .map_err(|e| format!("the executive did not start: {e:?}"))?;
+            print!("{}", render_summary(&summary));
+            Ok(ExitCode::SUCCESS)
+        }
+    }
+}
+
+/// The end-of-run summary: how the run ended, frame statistics, one row per task.
+pub fn render_summary(s: &RunSummary) -> String {
+    let mut out = format!(
+        "run ended ({}) after {:.2} s: {} frames, {} late, {} missed, {} overrun; max start \
+         latency {} us; timing records dropped {}\n",
+        match s.stop_reason {
+            StopReason::Duration => "programmed duration",
+            StopReason::Requested => "stop requested",
+        },
+        s.elapsed_ns as f64 / 1e9,
+        s.frames.frames,
+        s.frames.late,
+        s.frames.missed,
+        s.frames.overrun,
+        s.frames.max_start_latency_ns / 1000,
+        s.frames.timing_records_dropped,
+    );
+    out += &format!(
+        "{:<10} {:>8} {:>9} {:>9} {:>9} {:>7} {:>6} {:>7} {:>7} {:>6} {:>6}\n",
+        "task", "releases", "mean us", "max us", "budget", "budget!", "frame!",
+        "missed", "skipped", "resets", "faults"
+    );
+    for (slot, h) in s.table.tasks.iter().zip(&s.tasks) {
+        out += &format!(
+            "{:<10} {:>8} {:>9.1} {:>9.1} {:>9} {:>7} {:>6} {:>7} {:>7} {:>6} {:>6}\n",
+            slot.name,
+            h.releases,
+            h.exec.mean_ns() as f64 / 1e3,
+            h.exec.max_ns as f64 / 1e3,
+            slot.budget_ns / 1000,
+            h.overruns.budget,
+            h.overruns.frame,
+            h.overruns.missed,
+            h.skipped,
+            h.resets,
+            h.faults,
+        );
+    }
+    out += "budget! = over budget, frame! = ran into the next frame, missed = releases in \
+            frames the executive missed whole\n";
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn injection_spec_parses_and_rejects_nonsense() {
+        assert_eq!(
+            parse_injection("imu:12000@100..110"),
+            Ok(Injection { task: "imu".into(), extra_us: 12000, from_frame: 100, to_frame: 110 })
+        );
+        for bad in ["imu", "imu:12@", "imu:x@1..2", "imu:5@9..3", ":5@1..2", "imu:5@1-2"] {
+            assert!(parse_injection(bad).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn fault_plan_names_an_unknown_task() {
+        let inj = parse_injection("camera:10@1..2").expect("parses");
+        let e = fault_plan(&SHIPPED, &[inj]).err().expect("unknown");
+        assert!(e.contains("no task `camera`") && e.contains("imu"), "{e}");
+        let inj = parse_injection("gps:10@1..2").expect("parses");
+        let plan = fault_plan(&SHIPPED, &[inj]).expect("known");
+        assert_eq!(plan.extra_ns(SHIPPED.task_index("gps").expect("gps"), 1), 10_000);
+    }
+}

@@ -1,0 +1,16 @@
+//! The std shell around the flight core.
+//!
+//! The core steps tasks; the shell gives them an OS to live on: the executive thread (with
+//! whatever real-time settings the platform grants), the threads that move bytes between
+//! rings and devices, files and sockets, and the `skyframe` command line. Platform crates
+//! (`platform-linux`, `platform-qnx`, `platform-sim`) provide the timer and the device
+//! back ends through [`platform::Platform`].
+
+pub mod bench;
+pub mod check_schedule;
+pub mod cli;
+pub mod host;
+pub mod idle;
+pub mod platform;
+pub mod ring;
+pub mod stats;

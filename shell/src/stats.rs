@@ -1,0 +1,71 @@
+//! Distribution summaries for timing figures.
+
+use serde::Serialize;
+
+/// Percentiles of a sample, in the sample's unit.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct Distribution {
+    pub count: usize,
+    pub mean: f64,
+    pub p50: f64,
+    pub p99: f64,
+    pub p999: f64,
+    pub max: f64,
+}
+
+impl Distribution {
+    /// Nearest-rank percentiles (the value at or below which the share of samples lies).
+    pub fn of(samples: &mut [u64]) -> Self {
+        if samples.is_empty() {
+            return Self::default();
+        }
+        samples.sort_unstable();
+        let rank = |p: f64| {
+            let n = samples.len();
+            let i = ((p * n as f64).ceil() as usize).clamp(1, n) - 1;
+            samples.get(i).copied().unwrap_or(0) as f64
+        };
+        let sum: u128 = samples.iter().map(|&s| u128::from(s)).sum();
+        Self {
+            count: samples.len(),
+            mean: sum as f64 / samples.len() as f64,
+            p50: rank(0.50),
+            p99: rank(0.99),
+            p999: rank(0.999),
+            max: samples.last().copied().unwrap_or(0) as f64,
+        }
+    }
+
+    /// The same distribution in another unit (e.g. ns → µs with 1e-3).
+    pub fn scaled(self, factor: f64) -> Self {
+        Self {
+            mean: self.mean * factor,
+            p50: self.p50 * factor,
+            p99: self.p99 * factor,
+            p999: self.p999 * factor,
+            max: self.max * factor,
+            ..self
+        }
+    }
+}
+
+/// `a / b`, or `None` when `b` is zero (a ratio against a zero baseline means nothing).
+pub fn ratio(a: f64, b: f64) -> Option<f64> {
+    (b != 0.0).then(|| a / b)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn nearest_rank_percentiles() {
+        let mut v: Vec<u64> = (1..=1000).rev().collect();
+        let d = Distribution::of(&mut v);
+        assert_eq!((d.p50, d.p99, d.p999, d.max), (500.0, 990.0, 999.0, 1000.0));
+        assert_eq!(d.mean, 500.5);
+        let d = Distribution::of(&mut [7]);
+        assert_eq!((d.p50, d.p999, d.max), (7.0, 7.0, 7.0));
+        assert_eq!(Distribution::of(&mut []).count, 0);
+    }
+}
