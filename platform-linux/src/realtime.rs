@@ -3,18 +3,19 @@
 use nix::sched::{CpuSet, sched_setaffinity};
 use nix::sys::mman::{MlockAllFlags, mlockall};
 use nix::unistd::Pid;
-use skyframe_shell::platform::{RtConfig, RtReport};
+use skyframe_shell::platform::{RtConfig, RtReport, Setting};
 
 /// Applies `config` to the calling thread and the process; reports what each setting came to.
 pub fn apply(config: &RtConfig) -> RtReport {
     RtReport {
-        sched_fifo: config.fifo_priority.map(set_fifo),
-        mlockall: config.lock_memory.then(|| {
+        sched_fifo_priority: Setting::attempt(config.fifo_priority, set_fifo),
+        mlockall: Setting::attempt(config.lock_memory.then_some(()), |()| {
             mlockall(MlockAllFlags::MCL_CURRENT | MlockAllFlags::MCL_FUTURE)
+                .map(|()| true)
                 .map_err(|e| e.desc().to_string())
         }),
-        cpu: config.cpu.map(pin_to_cpu),
-        timer_slack_ns: config.timer_slack_ns.map(|ns| {
+        cpu: Setting::attempt(config.cpu, pin_to_cpu),
+        timer_slack_ns: Setting::attempt(config.timer_slack_ns, |ns| {
             nix::sys::prctl::set_timerslack(ns as libc::c_ulong)
                 .map(|()| ns)
                 .map_err(|e| e.desc().to_string())
@@ -24,7 +25,8 @@ pub fn apply(config: &RtConfig) -> RtReport {
 
 fn pin_to_cpu(cpu: usize) -> Result<usize, String> {
     let mut set = CpuSet::new();
-    set.set(cpu).map_err(|e| format!("CPU {cpu}: {}", e.desc()))?;
+    set.set(cpu)
+        .map_err(|e| format!("CPU {cpu}: {}", e.desc()))?;
     sched_setaffinity(Pid::from_raw(0), &set)
         .map(|()| cpu)
         .map_err(|e| format!("CPU {cpu}: {}", e.desc()))

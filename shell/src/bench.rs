@@ -70,7 +70,8 @@ pub fn bare_sleep_loop<T: FrameTimer>(
 ) -> Vec<u64> {
     let start = timer.now_ns() + period_ns;
     let end = start.saturating_add(u64::try_from(duration.as_nanos()).unwrap_or(u64::MAX));
-    let mut latencies = Vec::with_capacity((duration.as_nanos() / u128::from(period_ns.max(1))) as usize + 1);
+    let mut latencies =
+        Vec::with_capacity((duration.as_nanos() / u128::from(period_ns.max(1))) as usize + 1);
     let mut release = start;
     while release < end && !stop.load(Ordering::Relaxed) {
         timer.sleep_until(release);

@@ -9,6 +9,7 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 /// The outcome of checking a file: the text to print and whether the schedule is feasible.
+#[derive(Debug)]
 pub struct Checked {
     pub report: String,
     pub feasible: bool,
@@ -30,20 +31,22 @@ pub fn check_file(path: &Path) -> Result<Checked, String> {
         }
     })?;
     let exec = file.executive_input();
-    Ok(file.with_inputs(|tasks| match analyse(tasks, &exec, TASK_CATALOGUE) {
-        Ok(analysis) => Checked {
-            report: render(path, tasks, &exec, &analysis),
-            feasible: true,
-        },
-        Err(error) => Checked {
-            report: format!(
-                "{}: infeasible schedule: {}\n",
-                path.display(),
-                ErrorReport { error, tasks }
-            ),
-            feasible: false,
-        },
-    }))
+    Ok(
+        file.with_inputs(|tasks| match analyse(tasks, &exec, TASK_CATALOGUE) {
+            Ok(analysis) => Checked {
+                report: render(path, tasks, &exec, &analysis),
+                feasible: true,
+            },
+            Err(error) => Checked {
+                report: format!(
+                    "{}: infeasible schedule: {}\n",
+                    path.display(),
+                    ErrorReport { error, tasks }
+                ),
+                feasible: false,
+            },
+        }),
+    )
 }
 
 fn ms(ns: u64) -> String {
@@ -75,7 +78,10 @@ fn render(path: &Path, tasks: &[TaskInput<'_>], exec: &ExecutiveInput, a: &Analy
         a.frame_limit_ns / 1000,
         busiest_load as f64 * 100.0 / a.minor_frame_ns as f64,
     );
-    let _ = writeln!(s, "feasible: every frame fits, every response time is within its period\n");
+    let _ = writeln!(
+        s,
+        "feasible: every frame fits, every response time is within its period\n"
+    );
 
     let _ = writeln!(
         s,
@@ -106,7 +112,10 @@ fn render(path: &Path, tasks: &[TaskInput<'_>], exec: &ExecutiveInput, a: &Analy
     }
 
     let _ = write!(s, "\n{:>5} {:>9} ", "frame", "start");
-    let names: Vec<&str> = order.clone().filter_map(|i| tasks.get(i).map(|t| t.name)).collect();
+    let names: Vec<&str> = order
+        .clone()
+        .filter_map(|i| tasks.get(i).map(|t| t.name))
+        .collect();
     for name in &names {
         let _ = write!(s, " {name}");
     }
@@ -152,7 +161,10 @@ mod tests {
         assert!(r.contains("utilisation 29.8 %"));
         // imu's row, then the frame rows with imu in every frame.
         assert!(r.lines().any(|l| l.starts_with("1    imu ")));
-        let frames: Vec<&str> = r.lines().filter(|l| l.trim_start().starts_with(char::is_numeric) && l.contains(" ms ")).collect();
+        let frames: Vec<&str> = r
+            .lines()
+            .filter(|l| l.trim_start().starts_with(char::is_numeric) && l.contains(" ms "))
+            .collect();
         assert!(frames.len() >= 10);
     }
 
@@ -181,14 +193,26 @@ late_start_us = 500
 
     #[test]
     fn unreadable_and_malformed_files_say_where() {
-        let missing = check_file(Path::new("/nonexistent/schedule.toml")).err().expect("error");
-        assert!(missing.starts_with("cannot read /nonexistent/schedule.toml"), "{missing}");
-        let path = write("typo.toml", "tasks = []\n[executive]\nmargin_us = 1\nlate_start_us = 1\nslack = 3\n");
-        let e = check_file(&path).err().expect("error");
-        assert!(e.contains("typo.toml") && e.contains("line 5") && e.contains("slack"), "{e}");
+        let missing = check_file(Path::new("/nonexistent/schedule.toml")).expect_err("error");
+        assert!(
+            missing.starts_with("cannot read /nonexistent/schedule.toml"),
+            "{missing}"
+        );
+        let path = write(
+            "typo.toml",
+            "tasks = []\n[executive]\nmargin_us = 1\nlate_start_us = 1\nslack = 3\n",
+        );
+        let e = check_file(&path).expect_err("error");
+        assert!(
+            e.contains("typo.toml") && e.contains("line 5") && e.contains("slack"),
+            "{e}"
+        );
         assert!(!e.contains('\n'), "one line: {e}");
-        let path = write("policy.toml", "tasks = [{ name = \"imu\", period_ms = 10, budget_us = 1, on_overrun = \"panic\" }]\n[executive]\nmargin_us = 1\nlate_start_us = 1\n");
-        let e = check_file(&path).err().expect("error");
+        let path = write(
+            "policy.toml",
+            "tasks = [{ name = \"imu\", period_ms = 10, budget_us = 1, on_overrun = \"panic\" }]\n[executive]\nmargin_us = 1\nlate_start_us = 1\n",
+        );
+        let e = check_file(&path).expect_err("error");
         assert!(e.contains("on_overrun = \"panic\""), "{e}");
     }
 }

@@ -5,9 +5,10 @@
 
 use crate::bench;
 use crate::check_schedule::check_file;
-use crate::host::{RunOptions, RunSummary, StopReason, run_executive, stop_on_signals};
+use crate::host::{RunOptions, run_executive, stop_on_signals};
 use crate::idle::idle_tasks;
 use crate::platform::{Platform, RtConfig};
+use crate::summary::{SummaryReport, render_summary};
 use clap::{Args, Parser, Subcommand};
 use skyframe_core::executive::{FaultPlan, OverrunInjection, Task};
 use skyframe_core::schedule::{FrameTable, SHIPPED};
@@ -81,6 +82,9 @@ pub struct SimArgs {
     /// e.g. imu:12000@100..110. Repeatable.
     #[arg(long = "inject-overrun", value_name = "SPEC", value_parser = parse_injection)]
     pub inject_overrun: Vec<Injection>,
+    /// Print the end-of-run summary as one JSON object.
+    #[arg(long)]
+    pub json: bool,
     #[command(flatten)]
     pub realtime: RealtimeArgs,
 }
@@ -111,7 +115,7 @@ pub struct Injection {
 
 fn parse_seconds(text: &str) -> Result<f64, String> {
     match text.parse::<f64>() {
-        Ok(s) if s.is_finite() && s >= 0.0 && s < 1e9 => Ok(s),
+        Ok(s) if (0.0..1e9).contains(&s) => Ok(s),
         _ => Err(format!("`{text}` is not a number of seconds")),
     }
 }
@@ -140,7 +144,11 @@ pub fn fault_plan(table: &FrameTable, injections: &[Injection]) -> Result<FaultP
     for i in injections {
         let task = table.task_index(&i.task).ok_or_else(|| {
             let names: Vec<&str> = table.tasks.iter().map(|t| t.name).collect();
-            format!("--inject-overrun: no task `{}` in the schedule ({})", i.task, names.join(", "))
+            format!(
+                "--inject-overrun: no task `{}` in the schedule ({})",
+                i.task,
+                names.join(", ")
+            )
         })?;
         plan.push(OverrunInjection {
             task,
@@ -216,7 +224,8 @@ fn run<P: Platform>(platform: &P, command: Command) -> Result<ExitCode, String> 
                 args.duration
             );
             let mut idle = idle_tasks(SHIPPED.tasks.len());
-            let mut tasks: Vec<&mut dyn Task> = idle.iter_mut().map(|t| t as &mut dyn Task).collect();
+            let mut tasks: Vec<&mut dyn Task> =
+                idle.iter_mut().map(|t| t as &mut dyn Task).collect();
             let summary = run_executive(
                 platform,
                 &SHIPPED,
@@ -230,53 +239,16 @@ fn run<P: Platform>(platform: &P, command: Command) -> Result<ExitCode, String> 
                 |_| {},
             )
             .map_err(|e| format!("the executive did not start: {e:?}"))?;
-            print!("{}", render_summary(&summary));
+            if args.json {
+                let json = serde_json::to_string_pretty(&SummaryReport::from(&summary))
+                    .map_err(|e| e.to_string())?;
+                println!("{json}");
+            } else {
+                print!("{}", render_summary(&summary));
+            }
             Ok(ExitCode::SUCCESS)
         }
     }
-}
-
-/// The end-of-run summary: how the run ended, frame statistics, one row per task.
-pub fn render_summary(s: &RunSummary) -> String {
-    let mut out = format!(
-        "run ended ({}) after {:.2} s: {} frames, {} late, {} missed, {} overrun; max start \
-         latency {} us; timing records dropped {}\n",
-        match s.stop_reason {
-            StopReason::Duration => "programmed duration",
-            StopReason::Requested => "stop requested",
-        },
-        s.elapsed_ns as f64 / 1e9,
-        s.frames.frames,
-        s.frames.late,
-        s.frames.missed,
-        s.frames.overrun,
-        s.frames.max_start_latency_ns / 1000,
-        s.frames.timing_records_dropped,
-    );
-    out += &format!(
-        "{:<10} {:>8} {:>9} {:>9} {:>9} {:>7} {:>6} {:>7} {:>7} {:>6} {:>6}\n",
-        "task", "releases", "mean us", "max us", "budget", "budget!", "frame!",
-        "missed", "skipped", "resets", "faults"
-    );
-    for (slot, h) in s.table.tasks.iter().zip(&s.tasks) {
-        out += &format!(
-            "{:<10} {:>8} {:>9.1} {:>9.1} {:>9} {:>7} {:>6} {:>7} {:>7} {:>6} {:>6}\n",
-            slot.name,
-            h.releases,
-            h.exec.mean_ns() as f64 / 1e3,
-            h.exec.max_ns as f64 / 1e3,
-            slot.budget_ns / 1000,
-            h.overruns.budget,
-            h.overruns.frame,
-            h.overruns.missed,
-            h.skipped,
-            h.resets,
-            h.faults,
-        );
-    }
-    out += "budget! = over budget, frame! = ran into the next frame, missed = releases in \
-            frames the executive missed whole\n";
-    out
 }
 
 #[cfg(test)]
@@ -287,9 +259,21 @@ mod tests {
     fn injection_spec_parses_and_rejects_nonsense() {
         assert_eq!(
             parse_injection("imu:12000@100..110"),
-            Ok(Injection { task: "imu".into(), extra_us: 12000, from_frame: 100, to_frame: 110 })
+            Ok(Injection {
+                task: "imu".into(),
+                extra_us: 12000,
+                from_frame: 100,
+                to_frame: 110
+            })
         );
-        for bad in ["imu", "imu:12@", "imu:x@1..2", "imu:5@9..3", ":5@1..2", "imu:5@1-2"] {
+        for bad in [
+            "imu",
+            "imu:12@",
+            "imu:x@1..2",
+            "imu:5@9..3",
+            ":5@1..2",
+            "imu:5@1-2",
+        ] {
             assert!(parse_injection(bad).is_err(), "{bad}");
         }
     }
@@ -297,10 +281,13 @@ mod tests {
     #[test]
     fn fault_plan_names_an_unknown_task() {
         let inj = parse_injection("camera:10@1..2").expect("parses");
-        let e = fault_plan(&SHIPPED, &[inj]).err().expect("unknown");
+        let e = fault_plan(&SHIPPED, &[inj]).expect_err("unknown");
         assert!(e.contains("no task `camera`") && e.contains("imu"), "{e}");
         let inj = parse_injection("gps:10@1..2").expect("parses");
         let plan = fault_plan(&SHIPPED, &[inj]).expect("known");
-        assert_eq!(plan.extra_ns(SHIPPED.task_index("gps").expect("gps"), 1), 10_000);
+        assert_eq!(
+            plan.extra_ns(SHIPPED.task_index("gps").expect("gps"), 1),
+            10_000
+        );
     }
 }

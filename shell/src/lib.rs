@@ -14,3 +14,4 @@ pub mod idle;
 pub mod platform;
 pub mod ring;
 pub mod stats;
+pub mod summary;

@@ -28,30 +28,73 @@ impl Default for RtConfig {
     }
 }
 
+/// What one real-time setting came to.
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(tag = "status", content = "value", rename_all = "snake_case")]
+pub enum Setting<T> {
+    NotAsked,
+    Granted(T),
+    /// The OS said no; the reason as it said it.
+    Refused(String),
+}
+
+impl<T> Setting<T> {
+    /// `NotAsked` for `None`, else what the attempt returned.
+    pub fn attempt<A>(asked: Option<A>, f: impl FnOnce(A) -> Result<T, String>) -> Self {
+        match asked.map(f) {
+            None => Self::NotAsked,
+            Some(Ok(v)) => Self::Granted(v),
+            Some(Err(e)) => Self::Refused(e),
+        }
+    }
+
+    pub fn refusal(&self) -> Option<&str> {
+        match self {
+            Self::Refused(why) => Some(why),
+            _ => None,
+        }
+    }
+}
+
 /// What each real-time setting came to.
-#[derive(Clone, Debug, Default, serde::Serialize)]
+#[derive(Clone, Debug, serde::Serialize)]
 pub struct RtReport {
-    /// `Some(Ok(priority))` when granted, `Some(Err(why))` when refused, `None` when not asked.
-    pub sched_fifo: Option<Result<u8, String>>,
-    pub mlockall: Option<Result<(), String>>,
-    pub cpu: Option<Result<usize, String>>,
-    pub timer_slack_ns: Option<Result<u64, String>>,
+    pub sched_fifo_priority: Setting<u8>,
+    pub mlockall: Setting<bool>,
+    pub cpu: Setting<usize>,
+    pub timer_slack_ns: Setting<u64>,
 }
 
 impl RtReport {
+    /// Nothing asked (a platform without real-time controls).
+    pub fn none() -> Self {
+        Self {
+            sched_fifo_priority: Setting::NotAsked,
+            mlockall: Setting::NotAsked,
+            cpu: Setting::NotAsked,
+            timer_slack_ns: Setting::NotAsked,
+        }
+    }
+
     /// One line per refused setting, for stderr at start.
     pub fn refusals(&self) -> Vec<String> {
         let mut out = Vec::new();
-        if let Some(Err(e)) = &self.sched_fifo {
-            out.push(format!("SCHED_FIFO refused ({e}): running with the default scheduler"));
+        if let Some(e) = self.sched_fifo_priority.refusal() {
+            out.push(format!(
+                "SCHED_FIFO refused ({e}): running with the default scheduler"
+            ));
         }
-        if let Some(Err(e)) = &self.mlockall {
-            out.push(format!("mlockall refused ({e}): pages may fault during frames"));
+        if let Some(e) = self.mlockall.refusal() {
+            out.push(format!(
+                "mlockall refused ({e}): pages may fault during frames"
+            ));
         }
-        if let Some(Err(e)) = &self.cpu {
-            out.push(format!("CPU pinning refused ({e}): the executive may migrate"));
+        if let Some(e) = self.cpu.refusal() {
+            out.push(format!(
+                "CPU pinning refused ({e}): the executive may migrate"
+            ));
         }
-        if let Some(Err(e)) = &self.timer_slack_ns {
+        if let Some(e) = self.timer_slack_ns.refusal() {
             out.push(format!("timer slack refused ({e})"));
         }
         out
@@ -64,6 +107,12 @@ pub trait Platform {
 
     /// Short name for reports (`linux`, `qnx`, `sim`).
     fn name(&self) -> &'static str;
+
+    /// True when time is simulated: the executive may then wait for slow consumers instead
+    /// of dropping what they cannot take (there is no deadline to miss).
+    fn virtual_time(&self) -> bool {
+        false
+    }
 
     /// A frame timer whose clock starts at zero now.
     fn timer(&self) -> Self::Timer;

@@ -4,10 +4,75 @@
 use skyframe_core::comm::Sink;
 
 /// The producer end of an rtrb ring, as seen by the core.
-pub struct RingSink<T>(pub rtrb::Producer<T>);
+pub struct RingSink<T> {
+    producer: rtrb::Producer<T>,
+    wait_when_full: bool,
+}
+
+impl<T> RingSink<T> {
+    /// A full ring refuses the item (the core counts the drop): real time never waits.
+    pub fn new(producer: rtrb::Producer<T>) -> Self {
+        Self {
+            producer,
+            wait_when_full: false,
+        }
+    }
+
+    /// A full ring makes the producer wait for the consumer. Only for virtual time, where
+    /// the executive outruns any consumer and waiting costs no deadline.
+    pub fn waiting(producer: rtrb::Producer<T>) -> Self {
+        Self {
+            producer,
+            wait_when_full: true,
+        }
+    }
+}
 
 impl<T> Sink<T> for RingSink<T> {
     fn try_send(&mut self, item: T) -> Result<(), T> {
-        self.0.push(item).map_err(|rtrb::PushError::Full(item)| item)
+        let mut item = item;
+        loop {
+            match self.producer.push(item) {
+                Ok(()) => return Ok(()),
+                Err(rtrb::PushError::Full(back))
+                    if self.wait_when_full && !self.producer.is_abandoned() =>
+                {
+                    item = back;
+                    std::thread::yield_now();
+                }
+                Err(rtrb::PushError::Full(back)) => return Err(back),
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn real_time_sink_refuses_when_full_and_virtual_sink_waits_for_the_consumer() {
+        let (producer, _consumer) = rtrb::RingBuffer::new(2);
+        let mut sink = RingSink::new(producer);
+        assert_eq!(sink.try_send(1), Ok(()));
+        assert_eq!(sink.try_send(2), Ok(()));
+        assert_eq!(sink.try_send(3), Err(3));
+
+        let (producer, mut consumer) = rtrb::RingBuffer::new(2);
+        let mut sink = RingSink::waiting(producer);
+        std::thread::scope(|s| {
+            s.spawn(move || {
+                for i in 0..100 {
+                    assert_eq!(sink.try_send(i), Ok(()));
+                }
+            });
+            let mut got = Vec::new();
+            while got.len() < 100 {
+                if let Ok(v) = consumer.pop() {
+                    got.push(v);
+                }
+            }
+            assert_eq!(got, (0..100).collect::<Vec<_>>());
+        });
     }
 }

@@ -28,7 +28,7 @@ impl Distribution {
         let sum: u128 = samples.iter().map(|&s| u128::from(s)).sum();
         Self {
             count: samples.len(),
-            mean: sum as f64 / samples.len() as f64,
+            mean: (sum as f64 / samples.len() as f64 * 1000.0).round() / 1000.0,
             p50: rank(0.50),
             p99: rank(0.99),
             p999: rank(0.999),
@@ -36,14 +36,16 @@ impl Distribution {
         }
     }
 
-    /// The same distribution in another unit (e.g. ns → µs with 1e-3).
+    /// The same distribution in another unit (e.g. ns → µs with 1e-3), rounded to 3
+    /// decimals: finer digits are below any clock's resolution here.
     pub fn scaled(self, factor: f64) -> Self {
+        let s = |v: f64| (v * factor * 1000.0).round() / 1000.0;
         Self {
-            mean: self.mean * factor,
-            p50: self.p50 * factor,
-            p99: self.p99 * factor,
-            p999: self.p999 * factor,
-            max: self.max * factor,
+            mean: s(self.mean),
+            p50: s(self.p50),
+            p99: s(self.p99),
+            p999: s(self.p999),
+            max: s(self.max),
             ..self
         }
     }

@@ -1,0 +1,140 @@
+//! The end-of-run summary, for people and as JSON.
+
+use crate::host::{RunSummary, StopReason};
+use crate::platform::RtReport;
+use serde::Serialize;
+
+/// One task's health at the end of a run.
+#[derive(Debug, Serialize)]
+pub struct TaskReport {
+    pub name: &'static str,
+    pub budget_us: u64,
+    pub initialised: bool,
+    pub running: bool,
+    pub releases: u64,
+    pub steps: u64,
+    pub exec_min_us: f64,
+    pub exec_mean_us: f64,
+    pub exec_max_us: f64,
+    pub overruns_budget: u32,
+    pub overruns_frame: u32,
+    pub overruns_missed: u32,
+    pub skipped: u32,
+    pub resets: u32,
+    pub faults: u32,
+    pub init_failures: u32,
+    pub last_fault: Option<&'static str>,
+    /// Execution-time histogram: tenths of the budget, then 100-200 %, then >= 200 %.
+    pub exec_histogram: Vec<u32>,
+}
+
+#[derive(Debug, Serialize)]
+pub struct SummaryReport {
+    pub stop_reason: StopReason,
+    pub elapsed_s: f64,
+    pub frames: u64,
+    pub frames_late: u64,
+    pub frames_missed: u64,
+    pub frames_overrun: u64,
+    pub max_start_latency_us: f64,
+    pub max_frame_work_us: f64,
+    pub timing_records_dropped: u64,
+    pub realtime: RtReport,
+    pub tasks: Vec<TaskReport>,
+}
+
+impl From<&RunSummary> for SummaryReport {
+    fn from(s: &RunSummary) -> Self {
+        let us = |ns: u64| ns as f64 / 1e3;
+        Self {
+            stop_reason: s.stop_reason,
+            elapsed_s: s.elapsed_ns as f64 / 1e9,
+            frames: s.frames.frames,
+            frames_late: s.frames.late,
+            frames_missed: s.frames.missed,
+            frames_overrun: s.frames.overrun,
+            max_start_latency_us: us(s.frames.max_start_latency_ns),
+            max_frame_work_us: us(s.frames.max_frame_work_ns),
+            timing_records_dropped: s.frames.timing_records_dropped,
+            realtime: s.realtime.clone(),
+            tasks: s
+                .table
+                .tasks
+                .iter()
+                .zip(&s.tasks)
+                .map(|(slot, h)| TaskReport {
+                    name: slot.name,
+                    budget_us: slot.budget_ns / 1000,
+                    initialised: h.initialised,
+                    running: h.running,
+                    releases: h.releases,
+                    steps: h.exec.count,
+                    exec_min_us: us(h.exec.min_ns),
+                    exec_mean_us: us(h.exec.mean_ns()),
+                    exec_max_us: us(h.exec.max_ns),
+                    overruns_budget: h.overruns.budget,
+                    overruns_frame: h.overruns.frame,
+                    overruns_missed: h.overruns.missed,
+                    skipped: h.skipped,
+                    resets: h.resets,
+                    faults: h.faults,
+                    init_failures: h.init_failures,
+                    last_fault: h.last_fault,
+                    exec_histogram: h.exec.histogram.to_vec(),
+                })
+                .collect(),
+        }
+    }
+}
+
+/// The end-of-run summary: how the run ended, frame statistics, one row per task.
+pub fn render_summary(s: &RunSummary) -> String {
+    let mut out = format!(
+        "run ended ({}) after {:.2} s: {} frames, {} late, {} missed, {} overrun; max start \
+         latency {} us; timing records dropped {}\n",
+        match s.stop_reason {
+            StopReason::Duration => "programmed duration",
+            StopReason::Requested => "stop requested",
+        },
+        s.elapsed_ns as f64 / 1e9,
+        s.frames.frames,
+        s.frames.late,
+        s.frames.missed,
+        s.frames.overrun,
+        s.frames.max_start_latency_ns / 1000,
+        s.frames.timing_records_dropped,
+    );
+    out += &format!(
+        "{:<10} {:>8} {:>9} {:>9} {:>9} {:>7} {:>6} {:>7} {:>7} {:>6} {:>6}\n",
+        "task",
+        "releases",
+        "mean us",
+        "max us",
+        "budget",
+        "budget!",
+        "frame!",
+        "missed",
+        "skipped",
+        "resets",
+        "faults"
+    );
+    for (slot, h) in s.table.tasks.iter().zip(&s.tasks) {
+        out += &format!(
+            "{:<10} {:>8} {:>9.1} {:>9.1} {:>9} {:>7} {:>6} {:>7} {:>7} {:>6} {:>6}\n",
+            slot.name,
+            h.releases,
+            h.exec.mean_ns() as f64 / 1e3,
+            h.exec.max_ns as f64 / 1e3,
+            slot.budget_ns / 1000,
+            h.overruns.budget,
+            h.overruns.frame,
+            h.overruns.missed,
+            h.skipped,
+            h.resets,
+            h.faults,
+        );
+    }
+    out += "budget! = over budget, frame! = ran into the next frame, missed = releases in \
+            frames the executive missed whole\n";
+    out
+}

@@ -1,0 +1,290 @@
+//! The real `skyframe` binary: schedule check, timing detection on the real clock, clean stop
+//! on signals and on the programmed duration.
+
+use nix::sys::signal::{Signal, kill};
+use nix::unistd::Pid;
+use serde_json::Value;
+use skyframe_tests::{scratch, skyframe, workspace};
+use std::process::Stdio;
+use std::time::{Duration, Instant};
+
+fn json(stdout: &[u8]) -> Value {
+    serde_json::from_slice(stdout)
+        .unwrap_or_else(|e| panic!("not JSON ({e}): {}", String::from_utf8_lossy(stdout)))
+}
+
+fn task<'a>(summary: &'a Value, name: &str) -> &'a Value {
+    summary["tasks"]
+        .as_array()
+        .and_then(|tasks| tasks.iter().find(|t| t["name"] == name))
+        .unwrap_or_else(|| panic!("no task {name} in {summary}"))
+}
+
+#[test]
+fn check_schedule_prints_the_shipped_frame_table() {
+    let out = skyframe()
+        .args(["check-schedule", "schedule.toml"])
+        .current_dir(workspace())
+        .output()
+        .expect("runs");
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{text}");
+    assert!(
+        text.contains("minor frame 10 ms, major frame 100 ms (10 minor frames)"),
+        "{text}"
+    );
+    assert!(text.contains("utilisation 29.8 %"), "{text}");
+    let header = text
+        .lines()
+        .find(|l| l.trim_start().starts_with("frame"))
+        .expect("frame header");
+    for name in [
+        "imu",
+        "estimator",
+        "control",
+        "servo",
+        "gps",
+        "telemetry",
+        "logging",
+        "health",
+    ] {
+        assert!(header.contains(name), "{header}");
+    }
+}
+
+#[test]
+fn check_schedule_exits_1_on_infeasible_and_2_on_unreadable_files() {
+    let overfull = workspace().join("tests/schedules/overfull.toml");
+    let out = skyframe()
+        .arg("check-schedule")
+        .arg(&overfull)
+        .output()
+        .expect("runs");
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("minor frame 3 is over-full"), "{err}");
+
+    let dir = scratch("check-bad");
+    let bad = dir.join("bad.toml");
+    std::fs::write(&bad, "tasks = [ { name = \"imu\" ").expect("write");
+    let out = skyframe()
+        .arg("check-schedule")
+        .arg(&bad)
+        .output()
+        .expect("runs");
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(err.lines().count(), 1, "one line: {err}");
+    assert!(err.contains("bad.toml") && err.contains("line 1"), "{err}");
+
+    let out = skyframe()
+        .args(["check-schedule", "/nonexistent.toml"])
+        .output()
+        .expect("runs");
+    assert_eq!(out.status.code(), Some(2));
+}
+
+#[test]
+fn injected_overruns_are_detected_on_the_real_clock_and_policies_apply() {
+    // imu (budget 300 us, policy reset) gets 3 ms extra in frames 10..20; estimator (log)
+    // 12 ms extra in frames 50..52, which runs frames 50 and 51 into the next frame.
+    let out = skyframe()
+        .args([
+            "sim",
+            "--duration",
+            "1",
+            "--json",
+            "--priority",
+            "0",
+            "--no-mlockall",
+        ])
+        .args([
+            "--inject-overrun",
+            "imu:3000@10..20",
+            "--inject-overrun",
+            "estimator:12000@50..52",
+        ])
+        .output()
+        .expect("runs");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let s = json(&out.stdout);
+    let imu = task(&s, "imu");
+    assert_eq!(imu["overruns_budget"], 10);
+    assert_eq!(
+        imu["resets"], 10,
+        "reset policy: recover + init before each next release"
+    );
+    assert!(imu["exec_max_us"].as_f64().unwrap_or(0.0) >= 3000.0);
+    let estimator = task(&s, "estimator");
+    assert_eq!(estimator["overruns_budget"], 2);
+    assert_eq!(estimator["overruns_frame"], 2);
+    assert_eq!(estimator["resets"], 0, "log policy only counts");
+    assert_eq!(s["frames_overrun"], 2);
+    assert!(s["frames_late"].as_u64().unwrap_or(0) >= 2, "{s}");
+    assert!(
+        s["max_start_latency_us"].as_f64().unwrap_or(0.0) >= 2000.0,
+        "{s}"
+    );
+    assert_eq!(task(&s, "gps")["overruns_budget"], 0);
+}
+
+#[test]
+fn a_long_stall_misses_whole_frames_and_counts_their_releases() {
+    // 35 ms in imu's step of frame 30 (due at 300 ms): it ends near 335 ms, so frames 31
+    // (310-320 ms) and 32 (320-330 ms) pass whole and frame 33 starts about 5 ms late.
+    let out = skyframe()
+        .args([
+            "sim",
+            "--duration",
+            "1",
+            "--json",
+            "--priority",
+            "0",
+            "--no-mlockall",
+        ])
+        .args(["--inject-overrun", "imu:35000@30..31"])
+        .output()
+        .expect("runs");
+    assert!(out.status.success());
+    let s = json(&out.stdout);
+    assert!(s["frames_missed"].as_u64().unwrap_or(0) >= 2, "{s}");
+    assert!(
+        task(&s, "imu")["overruns_missed"].as_u64().unwrap_or(0) >= 2,
+        "{s}"
+    );
+    assert_eq!(task(&s, "imu")["overruns_frame"], 1, "{s}");
+    let frames = s["frames"].as_u64().unwrap_or(0) + s["frames_missed"].as_u64().unwrap_or(0);
+    assert!(
+        (100..=101).contains(&frames),
+        "1 s of 10 ms frames, run or missed: {s}"
+    );
+}
+
+fn stops_cleanly_on(signal: Signal) {
+    let child = skyframe()
+        .args([
+            "sim",
+            "--duration",
+            "60",
+            "--json",
+            "--priority",
+            "0",
+            "--no-mlockall",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("spawns");
+    std::thread::sleep(Duration::from_millis(700));
+    let sent = Instant::now();
+    kill(Pid::from_raw(child.id() as i32), signal).expect("signal");
+    let out = child.wait_with_output().expect("exits");
+    assert!(
+        sent.elapsed() < Duration::from_secs(2),
+        "stopped within a frame or two"
+    );
+    assert!(
+        out.status.success(),
+        "{:?}: {}",
+        out.status,
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let s = json(&out.stdout);
+    assert_eq!(s["stop_reason"], "requested");
+    for t in s["tasks"].as_array().expect("tasks") {
+        assert_eq!(t["running"], false, "shutdown reached {}", t["name"]);
+        assert!(t["steps"].as_u64().unwrap_or(0) > 0);
+    }
+}
+
+#[test]
+fn sigint_ends_the_run_cleanly() {
+    stops_cleanly_on(Signal::SIGINT);
+}
+
+#[test]
+fn sigterm_ends_the_run_cleanly() {
+    stops_cleanly_on(Signal::SIGTERM);
+}
+
+#[test]
+fn programmed_duration_ends_the_run() {
+    let out = skyframe()
+        .args([
+            "sim",
+            "--duration",
+            "0.5",
+            "--json",
+            "--priority",
+            "0",
+            "--no-mlockall",
+        ])
+        .output()
+        .expect("runs");
+    assert!(out.status.success());
+    let s = json(&out.stdout);
+    assert_eq!(s["stop_reason"], "duration");
+    assert_eq!(task(&s, "imu")["releases"], 50);
+    assert_eq!(task(&s, "gps")["releases"], 5);
+}
+
+#[test]
+fn bench_prints_both_latency_distributions_overhead_and_ratios() {
+    let out = skyframe()
+        .args(["bench", "--seconds", "0.5", "--json"])
+        .output()
+        .expect("runs");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let b = json(&out.stdout);
+    for key in ["p50", "p99", "p999", "max"] {
+        assert!(b["executive"]["wakeup_latency_us"][key].is_number(), "{b}");
+        assert!(
+            b["bare_clock_nanosleep"]["wakeup_latency_us"][key].is_number(),
+            "{b}"
+        );
+    }
+    assert_eq!(
+        b["executive"]["frames"].as_u64().unwrap_or(0)
+            + b["executive"]["overruns"]["missed_frames"]
+                .as_u64()
+                .unwrap_or(0),
+        50
+    );
+    assert!(b["bare_clock_nanosleep"]["wakeups"].as_u64().unwrap_or(0) == 50);
+    assert!(
+        b["executive"]["overhead_ns_per_frame"]["mean"]
+            .as_f64()
+            .unwrap_or(0.0)
+            > 0.0
+    );
+    assert!(
+        b["latency_ratio_executive_to_bare"]["p50"].is_number()
+            || b["bare_clock_nanosleep"]["wakeup_latency_us"]["p50"] == 0.0
+    );
+    // Asked for SCHED_FIFO by default: granted or refused, never silently skipped.
+    assert_ne!(b["realtime"]["sched_fifo_priority"]["status"], "not_asked");
+}
+
+#[test]
+fn bad_arguments_exit_2_with_one_line() {
+    let out = skyframe()
+        .args(["sim", "--inject-overrun", "camera:1@1..2"])
+        .output()
+        .expect("runs");
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("no task `camera`"), "{err}");
+    let out = skyframe()
+        .args(["bench", "--seconds", "soon"])
+        .output()
+        .expect("runs");
+    assert_eq!(out.status.code(), Some(2));
+}
