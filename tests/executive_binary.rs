@@ -212,6 +212,86 @@ fn sigterm_ends_the_run_cleanly() {
 }
 
 #[test]
+fn watchdog_counts_a_task_whose_releases_are_all_skipped() {
+    // logging (policy skip, every 10 ms) overruns on every release in frames 20..60: every
+    // other release is skipped, so it still completes steps and stays alive. The health task
+    // runs every 100 ms and sees all tasks alive.
+    let out = skyframe()
+        .args([
+            "sim",
+            "--duration",
+            "1",
+            "--json",
+            "--priority",
+            "0",
+            "--no-mlockall",
+        ])
+        .args(["--inject-overrun", "logging:1000@20..60"])
+        .output()
+        .expect("runs");
+    assert!(out.status.success());
+    let s = json(&out.stdout);
+    assert_eq!(s["watchdog_checks"], 10, "{s}");
+    let logging = task(&s, "logging");
+    assert_eq!(logging["skipped"], 20, "{s}");
+    assert_eq!(logging["overruns_budget"], 20, "{s}");
+    assert!(
+        s["tasks"]
+            .as_array()
+            .expect("tasks")
+            .iter()
+            .all(|t| t["watchdog_misses"] == 0),
+        "{s}"
+    );
+}
+
+#[test]
+fn real_time_refusals_are_reported_once_and_the_run_goes_on() {
+    // Without CAP_SYS_NICE and CAP_IPC_LOCK even root is refused SCHED_FIFO.
+    let out = std::process::Command::new("setpriv")
+        .args([
+            "--bounding-set=-sys_nice,-ipc_lock",
+            "--inh-caps=-sys_nice,-ipc_lock",
+        ])
+        .arg(skyframe_tests::binary("skyframe-linux", "skyframe"))
+        .args(["sim", "--duration", "0.3", "--json", "--cpu", "4096"])
+        .output();
+    let Ok(out) = out else {
+        panic!("setpriv (util-linux) is needed for this test");
+    };
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert_eq!(err.matches("SCHED_FIFO refused").count(), 1, "{err}");
+    assert_eq!(err.matches("CPU pinning refused").count(), 1, "{err}");
+    let s = json(&out.stdout);
+    assert_eq!(s["realtime"]["sched_fifo_priority"]["status"], "refused");
+    assert_eq!(s["realtime"]["cpu"]["status"], "refused");
+    assert_eq!(task(&s, "imu")["releases"], 30);
+}
+
+#[test]
+fn pinning_to_an_existing_cpu_is_granted() {
+    let out = skyframe()
+        .args([
+            "sim",
+            "--duration",
+            "0.2",
+            "--json",
+            "--cpu",
+            "0",
+            "--priority",
+            "0",
+        ])
+        .output()
+        .expect("runs");
+    assert!(out.status.success());
+    let s = json(&out.stdout);
+    assert_eq!(s["realtime"]["cpu"]["status"], "granted");
+    assert_eq!(s["realtime"]["cpu"]["value"], 0);
+    assert_eq!(s["realtime"]["sched_fifo_priority"]["status"], "not_asked");
+}
+
+#[test]
 fn programmed_duration_ends_the_run() {
     let out = skyframe()
         .args([

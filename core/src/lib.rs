@@ -20,3 +20,4 @@ pub mod facade;
 pub mod comm;
 pub mod executive;
 pub mod schedule;
+pub mod tasks;

@@ -2,6 +2,7 @@
 
 use nix::sched::{CpuSet, sched_setaffinity};
 use nix::sys::mman::{MlockAllFlags, mlockall};
+use nix::sys::resource::{Resource, getrlimit};
 use nix::unistd::Pid;
 use skyframe_shell::platform::{RtConfig, RtReport, Setting};
 
@@ -9,11 +10,7 @@ use skyframe_shell::platform::{RtConfig, RtReport, Setting};
 pub fn apply(config: &RtConfig) -> RtReport {
     RtReport {
         sched_fifo_priority: Setting::attempt(config.fifo_priority, set_fifo),
-        mlockall: Setting::attempt(config.lock_memory.then_some(()), |()| {
-            mlockall(MlockAllFlags::MCL_CURRENT | MlockAllFlags::MCL_FUTURE)
-                .map(|()| true)
-                .map_err(|e| e.desc().to_string())
-        }),
+        mlockall: Setting::attempt(config.lock_memory.then_some(()), |()| lock_memory()),
         cpu: Setting::attempt(config.cpu, pin_to_cpu),
         timer_slack_ns: Setting::attempt(config.timer_slack_ns, |ns| {
             nix::sys::prctl::set_timerslack(ns as libc::c_ulong)
@@ -21,6 +18,40 @@ pub fn apply(config: &RtConfig) -> RtReport {
                 .map_err(|e| e.desc().to_string())
         }),
     }
+}
+
+/// Locks the process's pages. Future pages too only when nothing limits locking: with
+/// `MCL_FUTURE` under a finite `RLIMIT_MEMLOCK`, the next thread stack or heap growth past
+/// the limit fails (a thread spawn returns EAGAIN), which would break the run we are trying
+/// to protect.
+fn lock_memory() -> Result<String, String> {
+    let unlimited = getrlimit(Resource::RLIMIT_MEMLOCK)
+        .map(|(soft, _)| soft == libc::RLIM_INFINITY)
+        .unwrap_or(false);
+    let future_too = unlimited || has_cap_ipc_lock();
+    let flags = if future_too {
+        MlockAllFlags::MCL_CURRENT | MlockAllFlags::MCL_FUTURE
+    } else {
+        MlockAllFlags::MCL_CURRENT
+    };
+    mlockall(flags).map_err(|e| e.desc().to_string())?;
+    Ok(if future_too {
+        "current and future pages".to_string()
+    } else {
+        "current pages only (RLIMIT_MEMLOCK is finite and CAP_IPC_LOCK is missing)".to_string()
+    })
+}
+
+/// CAP_IPC_LOCK (bit 14) in the effective set, read from /proc/self/status.
+fn has_cap_ipc_lock() -> bool {
+    const CAP_IPC_LOCK: u32 = 14;
+    std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|status| {
+            let hex = status.lines().find_map(|l| l.strip_prefix("CapEff:"))?;
+            u64::from_str_radix(hex.trim(), 16).ok()
+        })
+        .is_some_and(|caps| caps & (1 << CAP_IPC_LOCK) != 0)
 }
 
 fn pin_to_cpu(cpu: usize) -> Result<usize, String> {

@@ -115,7 +115,7 @@ pub fn run<P: Platform>(
             overheads.push(u64::from(record.overhead_ns));
         },
     )
-    .map_err(|e| format!("the executive did not start: {e:?}"))?;
+    .map_err(|e| e.to_string())?;
     let exec_latency = Distribution::of(&mut latencies).scaled(1e-3);
 
     let overruns = summary

@@ -6,12 +6,14 @@
 use crate::bench;
 use crate::check_schedule::check_file;
 use crate::host::{RunOptions, run_executive, stop_on_signals};
-use crate::idle::idle_tasks;
+use crate::idle::{IdleTask, idle_tasks};
 use crate::platform::{Platform, RtConfig};
 use crate::summary::{SummaryReport, render_summary};
 use clap::{Args, Parser, Subcommand};
+use skyframe_core::comm::LatestSlot;
 use skyframe_core::executive::{FaultPlan, OverrunInjection, Task};
 use skyframe_core::schedule::{FrameTable, SHIPPED};
+use skyframe_core::tasks::health::HealthTask;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::Arc;
@@ -223,9 +225,10 @@ fn run<P: Platform>(platform: &P, command: Command) -> Result<ExitCode, String> 
                  executive with idle tasks for {} s",
                 args.duration
             );
+            let watchdog_out = LatestSlot::new();
+            let mut watchdog = HealthTask::new(&watchdog_out);
             let mut idle = idle_tasks(SHIPPED.tasks.len());
-            let mut tasks: Vec<&mut dyn Task> =
-                idle.iter_mut().map(|t| t as &mut dyn Task).collect();
+            let mut tasks = with_watchdog(&SHIPPED, &mut idle, &mut watchdog);
             let summary = run_executive(
                 platform,
                 &SHIPPED,
@@ -238,17 +241,46 @@ fn run<P: Platform>(platform: &P, command: Command) -> Result<ExitCode, String> 
                 },
                 |_| {},
             )
-            .map_err(|e| format!("the executive did not start: {e:?}"))?;
+            .map_err(|e| e.to_string())?;
+            drop(tasks);
+            let mut report = SummaryReport::from(&summary);
+            report.set_watchdog(watchdog.report());
             if args.json {
-                let json = serde_json::to_string_pretty(&SummaryReport::from(&summary))
-                    .map_err(|e| e.to_string())?;
+                let json = serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?;
                 println!("{json}");
             } else {
                 print!("{}", render_summary(&summary));
+                let misses: Vec<String> = report
+                    .tasks
+                    .iter()
+                    .map(|t| format!("{} {}", t.name, t.watchdog_misses))
+                    .collect();
+                println!(
+                    "watchdog: {} checks; misses per task: {}",
+                    report.watchdog_checks,
+                    misses.join(", ")
+                );
             }
             Ok(ExitCode::SUCCESS)
         }
     }
+}
+
+/// Idle tasks in every slot but `health`, which gets the real watchdog.
+fn with_watchdog<'a>(
+    table: &FrameTable,
+    idle: &'a mut [IdleTask],
+    watchdog: &'a mut HealthTask<'_>,
+) -> Vec<&'a mut dyn Task> {
+    let health = table.task_index("health");
+    let mut watchdog = Some(watchdog as &mut dyn Task);
+    idle.iter_mut()
+        .enumerate()
+        .map(|(i, idle)| match watchdog.take_if(|_| Some(i) == health) {
+            Some(w) => w,
+            None => idle as &mut dyn Task,
+        })
+        .collect()
 }
 
 #[cfg(test)]

@@ -31,6 +31,24 @@ pub struct RunOptions<'a> {
     pub stop: &'a AtomicBool,
 }
 
+/// Why a run could not start.
+#[derive(Debug)]
+pub enum HostError {
+    /// The executive refused the task list or the table.
+    Start(StartError),
+    /// The OS would not give us a thread (e.g. memory limits).
+    Spawn(std::io::Error),
+}
+
+impl std::fmt::Display for HostError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Start(e) => write!(f, "the executive did not start: {e:?}"),
+            Self::Spawn(e) => write!(f, "cannot start a shell thread: {e}"),
+        }
+    }
+}
+
 /// What a run leaves behind for the summary.
 #[derive(Clone, Debug)]
 pub struct RunSummary {
@@ -52,7 +70,7 @@ pub fn run_executive<P: Platform>(
     tasks: &mut [&mut dyn Task],
     options: RunOptions<'_>,
     on_record: impl FnMut(&FrameRecord) + Send,
-) -> Result<RunSummary, StartError> {
+) -> Result<RunSummary, HostError> {
     let realtime = platform.make_realtime(&options.realtime);
     for refusal in realtime.refusals() {
         log::warn!("{refusal}");
@@ -62,7 +80,13 @@ pub fn run_executive<P: Platform>(
     let executive_done = AtomicBool::new(false);
 
     std::thread::scope(|scope| {
-        scope.spawn(|| drain_records(consumer, &executive_done, on_record));
+        std::thread::Builder::new()
+            .name("timing-drain".into())
+            .stack_size(256 * 1024)
+            .spawn_scoped(scope, || {
+                drain_records(consumer, &executive_done, on_record)
+            })
+            .map_err(HostError::Spawn)?;
 
         let sink = if platform.virtual_time() {
             RingSink::waiting(producer)
@@ -71,14 +95,16 @@ pub fn run_executive<P: Platform>(
         };
         let result = fly(table, &timer, tasks, &options, sink);
         executive_done.store(true, Ordering::Release);
-        result.map(|(stop_reason, elapsed_ns, frames, health)| RunSummary {
-            table,
-            realtime,
-            stop_reason,
-            elapsed_ns,
-            frames,
-            tasks: health,
-        })
+        result
+            .map_err(HostError::Start)
+            .map(|(stop_reason, elapsed_ns, frames, health)| RunSummary {
+                table,
+                realtime,
+                stop_reason,
+                elapsed_ns,
+                frames,
+                tasks: health,
+            })
     })
 }
 

@@ -60,7 +60,8 @@ impl<T> Setting<T> {
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct RtReport {
     pub sched_fifo_priority: Setting<u8>,
-    pub mlockall: Setting<bool>,
+    /// Which pages were locked.
+    pub mlockall: Setting<String>,
     pub cpu: Setting<usize>,
     pub timer_slack_ns: Setting<u64>,
 }

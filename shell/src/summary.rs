@@ -3,6 +3,7 @@
 use crate::host::{RunSummary, StopReason};
 use crate::platform::RtReport;
 use serde::Serialize;
+use skyframe_core::tasks::health::WatchdogReport;
 
 /// One task's health at the end of a run.
 #[derive(Debug, Serialize)]
@@ -26,6 +27,8 @@ pub struct TaskReport {
     pub last_fault: Option<&'static str>,
     /// Execution-time histogram: tenths of the budget, then 100-200 %, then >= 200 %.
     pub exec_histogram: Vec<u32>,
+    /// Watchdog checks at which the task had been released but had not completed a step.
+    pub watchdog_misses: u32,
 }
 
 #[derive(Debug, Serialize)]
@@ -40,7 +43,18 @@ pub struct SummaryReport {
     pub max_frame_work_us: f64,
     pub timing_records_dropped: u64,
     pub realtime: RtReport,
+    pub watchdog_checks: u32,
     pub tasks: Vec<TaskReport>,
+}
+
+impl SummaryReport {
+    /// Adds what the health task's watchdog counted.
+    pub fn set_watchdog(&mut self, report: &WatchdogReport) {
+        self.watchdog_checks = report.checks;
+        for (task, misses) in self.tasks.iter_mut().zip(report.misses) {
+            task.watchdog_misses = misses;
+        }
+    }
 }
 
 impl From<&RunSummary> for SummaryReport {
@@ -57,6 +71,7 @@ impl From<&RunSummary> for SummaryReport {
             max_frame_work_us: us(s.frames.max_frame_work_ns),
             timing_records_dropped: s.frames.timing_records_dropped,
             realtime: s.realtime.clone(),
+            watchdog_checks: 0,
             tasks: s
                 .table
                 .tasks
@@ -81,6 +96,7 @@ impl From<&RunSummary> for SummaryReport {
                     init_failures: h.init_failures,
                     last_fault: h.last_fault,
                     exec_histogram: h.exec.histogram.to_vec(),
+                    watchdog_misses: 0,
                 })
                 .collect(),
         }

@@ -15,8 +15,9 @@ fn cargo() -> String {
     std::env::var("CARGO").unwrap_or_else(|_| "cargo".to_string())
 }
 
-/// Path of a binary built by this workspace (same profile as the running test), building it
-/// first if `cargo test -p skyframe-tests` ran without it.
+/// Path of a binary built by this workspace (same profile as the running test). Cargo does
+/// not build another package's binaries for these tests, so ask it to (a no-op when fresh:
+/// a stale binary would test old code).
 pub fn binary(package: &str, name: &str) -> PathBuf {
     let exe = std::env::current_exe().unwrap_or_default();
     // target/<profile>/deps/<test> -> target/<profile>/<name>
@@ -26,7 +27,11 @@ pub fn binary(package: &str, name: &str) -> PathBuf {
         .map(Path::to_path_buf)
         .unwrap_or_default();
     let path = profile_dir.join(name);
-    if !path.exists() {
+    static BUILT: std::sync::Mutex<Vec<String>> = std::sync::Mutex::new(Vec::new());
+    let mut built = BUILT
+        .lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner());
+    if !built.iter().any(|b| b == name) {
         let release = profile_dir.file_name().is_some_and(|n| n == "release");
         let mut cmd = Command::new(cargo());
         cmd.args(["build", "-q", "-p", package, "--bin", name]);
@@ -35,6 +40,7 @@ pub fn binary(package: &str, name: &str) -> PathBuf {
         }
         let status = cmd.current_dir(workspace()).status().expect("cargo runs");
         assert!(status.success(), "building {name} failed");
+        built.push(name.to_string());
     }
     path
 }

@@ -1,0 +1,207 @@
+//! The health task: the software watchdog.
+//!
+//! The seed's watchdog cancelled threads that had not set their "alive" flag since its last
+//! check. Here nothing can be stuck inside a step (the executive measures every step and
+//! applies overrun policies), so the watchdog's job is to notice tasks that were *released*
+//! since the last check but never *completed* a step: init failing over and over, every
+//! release skipped, every step faulting. It counts those as misses, keeps the alive light for
+//! telemetry, and publishes a report into a latest-value slot.
+
+use crate::comm::LatestSlot;
+use crate::executive::{Task, TaskContext, TaskFault};
+use crate::schedule::analysis::MAX_TASKS;
+
+/// What the watchdog saw at its last check.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct WatchdogReport {
+    /// When the check ran (executive clock, ns).
+    pub checked_at_ns: u64,
+    /// Checks done so far.
+    pub checks: u32,
+    /// Tasks that completed a step since the previous check (bit per table index).
+    pub alive: u32,
+    /// Tasks released since the previous check that never completed a step.
+    pub stalled: u32,
+    /// Per task: checks at which it was released but never completed a step.
+    pub misses: [u32; MAX_TASKS],
+}
+
+pub struct HealthTask<'a> {
+    report: WatchdogReport,
+    /// Release counts at the previous check.
+    releases_seen: [u64; MAX_TASKS],
+    out: &'a LatestSlot<WatchdogReport>,
+}
+
+impl<'a> HealthTask<'a> {
+    pub fn new(out: &'a LatestSlot<WatchdogReport>) -> Self {
+        Self {
+            report: WatchdogReport::default(),
+            releases_seen: [0; MAX_TASKS],
+            out,
+        }
+    }
+
+    pub fn report(&self) -> &WatchdogReport {
+        &self.report
+    }
+}
+
+impl Task for HealthTask<'_> {
+    fn init(&mut self, cx: &mut TaskContext<'_>) -> Result<(), TaskFault> {
+        // Start counting from now: releases before (re)initialisation are not held against
+        // anyone.
+        for (index, seen) in self.releases_seen.iter_mut().enumerate() {
+            *seen = cx.health.task(index).map_or(0, |h| h.releases);
+        }
+        Ok(())
+    }
+
+    fn step(&mut self, cx: &mut TaskContext<'_>) -> Result<(), TaskFault> {
+        let health = cx.health;
+        let mut alive = 0u32;
+        let mut stalled = 0u32;
+        for (index, seen) in self
+            .releases_seen
+            .iter_mut()
+            .enumerate()
+            .take(health.task_count())
+        {
+            let bit = 1u32 << index;
+            let was_alive = health.take_alive(index);
+            let releases = health.task(index).map_or(0, |h| h.releases);
+            if index == cx.task {
+                // The watchdog is running, so it is alive; its own step completes after this.
+                alive |= bit;
+            } else if was_alive {
+                alive |= bit;
+            } else if releases > *seen {
+                stalled |= bit;
+                if let Some(m) = self.report.misses.get_mut(index) {
+                    *m = m.saturating_add(1);
+                }
+            }
+            *seen = releases;
+        }
+        self.report.checked_at_ns = cx.now_ns;
+        self.report.checks = self.report.checks.saturating_add(1);
+        self.report.alive = alive;
+        self.report.stalled = stalled;
+        self.out.publish(self.report);
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::comm::Sink;
+    use crate::executive::{Clock, Executive, FrameRecord};
+    use crate::schedule::{FrameTable, OverrunPolicy, TaskSlot};
+    use core::cell::Cell;
+
+    const MS: u64 = 1_000_000;
+
+    struct Tick(Cell<u64>);
+    impl Clock for Tick {
+        fn now_ns(&self) -> u64 {
+            self.0.get()
+        }
+    }
+
+    struct Nothing;
+    impl Sink<FrameRecord> for Nothing {
+        fn try_send(&mut self, _: FrameRecord) -> Result<(), FrameRecord> {
+            Ok(())
+        }
+    }
+
+    /// Completes its steps only while `healthy` is set; otherwise its step fails.
+    struct Flaky<'a>(&'a Cell<bool>);
+    impl Task for Flaky<'_> {
+        fn init(&mut self, _: &mut TaskContext<'_>) -> Result<(), TaskFault> {
+            Ok(())
+        }
+        fn step(&mut self, _: &mut TaskContext<'_>) -> Result<(), TaskFault> {
+            if self.0.get() {
+                Ok(())
+            } else {
+                Err(TaskFault::new("sensor silent"))
+            }
+        }
+    }
+
+    static SLOTS: [TaskSlot; 3] = [
+        TaskSlot {
+            name: "imu",
+            period_ns: 10 * MS,
+            offset_ns: 0,
+            budget_ns: MS,
+            on_overrun: OverrunPolicy::Log,
+        },
+        TaskSlot {
+            name: "gps",
+            period_ns: 100 * MS,
+            offset_ns: 20 * MS,
+            budget_ns: MS,
+            on_overrun: OverrunPolicy::Log,
+        },
+        TaskSlot {
+            name: "health",
+            period_ns: 50 * MS,
+            offset_ns: 40 * MS,
+            budget_ns: MS,
+            on_overrun: OverrunPolicy::Log,
+        },
+    ];
+    static TABLE: FrameTable = FrameTable {
+        minor_frame_ns: 10 * MS,
+        margin_ns: MS,
+        late_start_ns: MS,
+        tasks: &SLOTS,
+        // imu every frame; gps in frame 2; health in frames 4 and 9.
+        frames: &[
+            0b001, 0b001, 0b011, 0b001, 0b101, 0b001, 0b001, 0b001, 0b001, 0b101,
+        ],
+        utilisation_ppm: 0,
+    };
+
+    #[test]
+    fn watchdog_counts_released_tasks_that_never_complete_and_ignores_ones_not_released() {
+        let clock = Tick(Cell::new(0));
+        let imu_ok = Cell::new(true);
+        let gps_ok = Cell::new(true);
+        let slot = LatestSlot::new();
+        let mut imu = Flaky(&imu_ok);
+        let mut gps = Flaky(&gps_ok);
+        let mut health = HealthTask::new(&slot);
+        let mut exec = Executive::new(&TABLE, &clock);
+        {
+            let mut tasks: [&mut dyn Task; 3] = [&mut imu, &mut gps, &mut health];
+            exec.start(&mut tasks, 0).expect("start");
+            let mut run = |frames: u64| {
+                for _ in 0..frames {
+                    clock.0.set(exec.next_release_ns());
+                    exec.run_frame(&mut tasks, &mut Nothing);
+                }
+            };
+            run(5); // frames 0-4: check at frame 4, all fine (gps ran in frame 2)
+            let r = slot.peek().expect("report");
+            assert_eq!((r.checks, r.alive, r.stalled), (1, 0b111, 0));
+            run(5); // frames 5-9: gps not released since the last check: not a miss
+            let r = slot.peek().expect("report");
+            assert_eq!((r.checks, r.alive, r.stalled), (2, 0b101, 0));
+            imu_ok.set(false);
+            gps_ok.set(false);
+            run(5); // frames 10-14: imu and gps (frame 12) fail every step
+            let r = slot.peek().expect("report");
+            assert_eq!((r.alive, r.stalled), (0b100, 0b011));
+            imu_ok.set(true);
+            run(5);
+            let r = slot.peek().expect("report");
+            assert_eq!((r.alive, r.stalled), (0b101, 0));
+            assert_eq!(r.misses[..3], [1, 1, 0]);
+        }
+    }
+}
