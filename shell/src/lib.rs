@@ -13,5 +13,6 @@ pub mod host;
 pub mod idle;
 pub mod platform;
 pub mod ring;
+pub mod serial;
 pub mod stats;
 pub mod summary;
