@@ -26,7 +26,7 @@ fn main() {
     let text = std::fs::read_to_string(&path)
         .unwrap_or_else(|e| fail(&format!("cannot read {}: {e}", path.display())));
     let schedule = file::ScheduleFile::parse(&text)
-        .unwrap_or_else(|e| fail(&format!("{}: {}", path.display(), e.trim_end())));
+        .unwrap_or_else(|e| fail(&format!("{}: {e}", path.display())));
     let exec = schedule.executive_input();
 
     let generated = schedule.with_inputs(|tasks| {

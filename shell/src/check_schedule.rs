@@ -20,16 +20,7 @@ pub struct Checked {
 pub fn check_file(path: &Path) -> Result<Checked, String> {
     let text = std::fs::read_to_string(path)
         .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
-    let file = ScheduleFile::parse(&text).map_err(|e| {
-        // toml's message spans lines (a caret under the spot); the first names line and column.
-        let first = e.lines().next().unwrap_or("invalid TOML");
-        let detail = e.lines().rev().find(|l| !l.trim().is_empty()).unwrap_or("");
-        if detail == first {
-            format!("{}: {first}", path.display())
-        } else {
-            format!("{}: {first}: {}", path.display(), detail.trim())
-        }
-    })?;
+    let file = ScheduleFile::parse(&text).map_err(|e| format!("{}: {e}", path.display()))?;
     let exec = file.executive_input();
     Ok(
         file.with_inputs(|tasks| match analyse(tasks, &exec, TASK_CATALOGUE) {

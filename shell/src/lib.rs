@@ -16,3 +16,4 @@ pub mod ring;
 pub mod serial;
 pub mod stats;
 pub mod summary;
+pub mod vehicle;

@@ -45,7 +45,7 @@ const US: u64 = 1_000;
 impl ScheduleFile {
     /// Parses the text of a schedule file; the error says the line and column.
     pub fn parse(text: &str) -> Result<Self, String> {
-        let file: Self = toml::from_str(text).map_err(|e| e.to_string())?;
+        let file: Self = toml::from_str(text).map_err(|e| toml_error_line(&e, text))?;
         for t in &file.tasks {
             if OverrunPolicy::parse(&t.on_overrun).is_none() {
                 return Err(std::format!(
@@ -87,5 +87,20 @@ impl ScheduleFile {
             })
             .collect();
         f(&inputs)
+    }
+}
+
+/// One line for a TOML error: `line L, column C: reason` (toml's own text spans several lines
+/// with a caret drawing, which build output and stderr mangle).
+pub fn toml_error_line(e: &toml::de::Error, text: &str) -> String {
+    let message = e.message().trim();
+    match e.span() {
+        Some(span) => {
+            let before = text.get(..span.start).unwrap_or(text);
+            let line = before.matches('\n').count() + 1;
+            let column = before.len() - before.rfind('\n').map_or(0, |i| i + 1) + 1;
+            std::format!("line {line}, column {column}: {message}")
+        }
+        None => message.to_string(),
     }
 }
