@@ -368,3 +368,34 @@ fn bad_arguments_exit_2_with_one_line() {
         .expect("runs");
     assert_eq!(out.status.code(), Some(2));
 }
+
+#[test]
+fn bench_compares_against_cyclictest_in_the_same_run() {
+    // .ci/run installs rt-tests; on a machine without it the bench says so in one line.
+    let out = skyframe()
+        .args([
+            "bench",
+            "--seconds",
+            "0.3",
+            "--json",
+            "--compare-cyclictest",
+        ])
+        .output()
+        .expect("runs");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    let b = json(&out.stdout);
+    let c = &b["cyclictest"];
+    assert_eq!(c["wakeup_latency_us"]["count"], 30, "{b}");
+    assert!(
+        c["command"].as_str().unwrap_or("").contains("-i10000 -l30"),
+        "{b}"
+    );
+    for key in ["p50", "p99", "max"] {
+        assert!(
+            b["latency_ratio_executive_to_cyclictest"][key].is_number()
+                || c["wakeup_latency_us"][key] == 0.0,
+            "{b}"
+        );
+    }
+}

@@ -6,6 +6,7 @@
 //! latencies shows what the executive adds over the machine's floor; the executive's own time
 //! per frame (frame work less the tasks' time) shows its overhead.
 
+use crate::cyclictest::CyclictestFigures;
 use crate::host::{RunOptions, run_executive};
 use crate::idle::idle_tasks;
 use crate::platform::{Platform, RtConfig, RtReport};
@@ -58,6 +59,24 @@ pub struct BenchReport {
     pub executive: ExecutiveFigures,
     /// Executive wake-up latency / bare loop wake-up latency.
     pub latency_ratio_executive_to_bare: LatencyRatio,
+    /// With `--compare-cyclictest`: cyclictest at the same period, priority and CPU.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cyclictest: Option<CyclictestFigures>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub latency_ratio_executive_to_cyclictest: Option<LatencyRatio>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub latency_ratio_bare_to_cyclictest: Option<LatencyRatio>,
+}
+
+impl LatencyRatio {
+    pub fn of(a: &Distribution, b: &Distribution) -> Self {
+        Self {
+            p50: ratio(a.p50, b.p50),
+            p99: ratio(a.p99, b.p99),
+            p999: ratio(a.p999, b.p999),
+            max: ratio(a.max, b.max),
+        }
+    }
 }
 
 /// Sleeps to each absolute release `period_ns` apart for `duration` and records how late each
@@ -81,14 +100,28 @@ pub fn bare_sleep_loop<T: FrameTimer>(
     latencies
 }
 
+/// What to measure.
+pub struct BenchOptions<'a> {
+    pub seconds: f64,
+    pub realtime: RtConfig,
+    pub faults: FaultPlan,
+    pub compare_cyclictest: bool,
+    pub stop: &'a AtomicBool,
+}
+
 pub fn run<P: Platform>(
     platform: &P,
     table: &'static FrameTable,
-    seconds: f64,
-    realtime: &RtConfig,
-    faults: FaultPlan,
-    stop: &AtomicBool,
+    options: BenchOptions<'_>,
 ) -> Result<BenchReport, String> {
+    let BenchOptions {
+        seconds,
+        realtime,
+        faults,
+        compare_cyclictest,
+        stop,
+    } = options;
+    let realtime = &realtime;
     let each = Duration::from_secs_f64(seconds.max(0.0));
     let rt_report = platform.make_realtime(realtime);
 
@@ -117,6 +150,18 @@ pub fn run<P: Platform>(
     )
     .map_err(|e| e.to_string())?;
     let exec_latency = Distribution::of(&mut latencies).scaled(1e-3);
+    let cyclictest = if compare_cyclictest {
+        Some(crate::cyclictest::run(
+            table.minor_frame_ns,
+            each,
+            realtime.fifo_priority,
+            realtime.cpu,
+            realtime.lock_memory,
+            &std::env::temp_dir(),
+        )?)
+    } else {
+        None
+    };
 
     let overruns = summary
         .tasks
@@ -147,12 +192,14 @@ pub fn run<P: Platform>(
             },
             timing_records_dropped: summary.frames.timing_records_dropped,
         },
-        latency_ratio_executive_to_bare: LatencyRatio {
-            p50: ratio(exec_latency.p50, bare_latency.p50),
-            p99: ratio(exec_latency.p99, bare_latency.p99),
-            p999: ratio(exec_latency.p999, bare_latency.p999),
-            max: ratio(exec_latency.max, bare_latency.max),
-        },
+        latency_ratio_executive_to_bare: LatencyRatio::of(&exec_latency, &bare_latency),
+        latency_ratio_executive_to_cyclictest: cyclictest
+            .as_ref()
+            .map(|c| LatencyRatio::of(&exec_latency, &c.wakeup_latency_us)),
+        latency_ratio_bare_to_cyclictest: cyclictest
+            .as_ref()
+            .map(|c| LatencyRatio::of(&bare_latency, &c.wakeup_latency_us)),
+        cyclictest,
     })
 }
 
@@ -192,14 +239,31 @@ pub fn render_text(r: &BenchReport) -> String {
         "overruns: budget {}  frame {}  late frames {}  missed frames {}\n",
         o.budget, o.frame, o.late_frames, o.missed_frames
     );
-    let q = &r.latency_ratio_executive_to_bare;
     let f = |x: Option<f64>| x.map_or("-".to_string(), |v| format!("{v:.2}"));
-    s += &format!(
-        "latency ratio executive/bare: p50 {}  p99 {}  p99.9 {}  max {}\n",
-        f(q.p50),
-        f(q.p99),
-        f(q.p999),
-        f(q.max)
-    );
+    let ratio_line = |label: &str, q: &LatencyRatio| {
+        format!(
+            "latency ratio {label}: p50 {}  p99 {}  p99.9 {}  max {}\n",
+            f(q.p50),
+            f(q.p99),
+            f(q.p999),
+            f(q.max)
+        )
+    };
+    s += &ratio_line("executive/bare", &r.latency_ratio_executive_to_bare);
+    if let Some(c) = &r.cyclictest {
+        s += &format!(
+            "cyclictest            wake-up latency us: {}  ({} wake-ups, {} overflows)\n  {}\n",
+            d(&c.wakeup_latency_us),
+            c.wakeup_latency_us.count,
+            c.overflows,
+            c.command
+        );
+    }
+    if let Some(q) = &r.latency_ratio_executive_to_cyclictest {
+        s += &ratio_line("executive/cyclictest", q);
+    }
+    if let Some(q) = &r.latency_ratio_bare_to_cyclictest {
+        s += &ratio_line("bare/cyclictest", q);
+    }
     s
 }

@@ -102,6 +102,10 @@ pub struct BenchArgs {
     /// As for `sim`: TASK:EXTRA_US@FROM..TO. Repeatable.
     #[arg(long = "inject-overrun", value_name = "SPEC", value_parser = parse_injection)]
     pub inject_overrun: Vec<Injection>,
+    /// Also run cyclictest (Debian rt-tests) with the same period, priority and CPU, and
+    /// print its distribution and the ratios.
+    #[arg(long)]
+    pub compare_cyclictest: bool,
     #[command(flatten)]
     pub realtime: RealtimeArgs,
 }
@@ -203,10 +207,13 @@ fn run<P: Platform>(platform: &P, command: Command) -> Result<ExitCode, String> 
             let report = bench::run(
                 platform,
                 &SHIPPED,
-                args.seconds,
-                &args.realtime.config(),
-                faults,
-                &stop,
+                bench::BenchOptions {
+                    seconds: args.seconds,
+                    realtime: args.realtime.config(),
+                    faults,
+                    compare_cyclictest: args.compare_cyclictest,
+                    stop: &stop,
+                },
             )
             .map_err(|e| format!("bench: {e}"))?;
             if args.json {

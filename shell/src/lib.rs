@@ -9,6 +9,7 @@
 pub mod bench;
 pub mod check_schedule;
 pub mod cli;
+pub mod cyclictest;
 pub mod host;
 pub mod idle;
 pub mod platform;

@@ -36,6 +36,36 @@ impl Distribution {
         }
     }
 
+    /// Percentiles of a histogram of `(value, count)` bins, with `overflows` samples above
+    /// the last bin whose largest value was `max`.
+    pub fn of_histogram(bins: &[(u64, u64)], overflows: u64, max: f64) -> Self {
+        let total: u64 = bins.iter().map(|b| b.1).sum::<u64>() + overflows;
+        if total == 0 {
+            return Self::default();
+        }
+        let rank = |p: f64| {
+            let wanted = ((p * total as f64).ceil() as u64).clamp(1, total);
+            let mut seen = 0;
+            for &(value, count) in bins {
+                seen += count;
+                if seen >= wanted {
+                    return value as f64;
+                }
+            }
+            max
+        };
+        let sum: f64 =
+            bins.iter().map(|&(v, c)| v as f64 * c as f64).sum::<f64>() + overflows as f64 * max;
+        Self {
+            count: total as usize,
+            mean: (sum / total as f64 * 1000.0).round() / 1000.0,
+            p50: rank(0.50),
+            p99: rank(0.99),
+            p999: rank(0.999),
+            max,
+        }
+    }
+
     /// The same distribution in another unit (e.g. ns → µs with 1e-3), rounded to 3
     /// decimals: finer digits are below any clock's resolution here.
     pub fn scaled(self, factor: f64) -> Self {
