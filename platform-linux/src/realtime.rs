@@ -12,6 +12,7 @@ pub fn apply(config: &RtConfig) -> RtReport {
         sched_fifo_priority: Setting::attempt(config.fifo_priority, set_fifo),
         mlockall: Setting::attempt(config.lock_memory.then_some(()), |()| lock_memory()),
         cpu: Setting::attempt(config.cpu, pin_to_cpu),
+        cpu_dma_latency_us: Setting::attempt(config.cpu_dma_latency_us, hold_cpu_dma_latency),
         timer_slack_ns: Setting::attempt(config.timer_slack_ns, |ns| {
             nix::sys::prctl::set_timerslack(ns as libc::c_ulong)
                 .map(|()| ns)
@@ -52,6 +53,25 @@ fn has_cap_ipc_lock() -> bool {
             u64::from_str_radix(hex.trim(), 16).ok()
         })
         .is_some_and(|caps| caps & (1 << CAP_IPC_LOCK) != 0)
+}
+
+/// The open `/dev/cpu_dma_latency`: the request lasts while the file stays open, so it is
+/// kept for the life of the process.
+static CPU_DMA_LATENCY: std::sync::Mutex<Option<std::fs::File>> = std::sync::Mutex::new(None);
+
+fn hold_cpu_dma_latency(us: u32) -> Result<u32, String> {
+    use std::io::Write;
+    let mut file = std::fs::OpenOptions::new()
+        .write(true)
+        .open("/dev/cpu_dma_latency")
+        .map_err(|e| format!("/dev/cpu_dma_latency: {e}"))?;
+    // The PM QoS interface takes a native-endian 32-bit integer.
+    let value = i32::try_from(us).unwrap_or(i32::MAX);
+    file.write_all(&value.to_ne_bytes())
+        .map_err(|e| format!("/dev/cpu_dma_latency: {e}"))?;
+    let mut held = CPU_DMA_LATENCY.lock().unwrap_or_else(|p| p.into_inner());
+    *held = Some(file);
+    Ok(us)
 }
 
 fn pin_to_cpu(cpu: usize) -> Result<usize, String> {

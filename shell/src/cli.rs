@@ -5,7 +5,7 @@
 
 use crate::bench;
 use crate::check_schedule::check_file;
-use crate::host::{RunOptions, run_executive, stop_on_signals};
+use crate::host::{RunOptions, TimerCheckConfig, run_executive, stop_on_signals};
 use crate::idle::{IdleTask, idle_tasks};
 use crate::platform::{Platform, RtConfig};
 use crate::summary::{SummaryReport, render_summary};
@@ -62,6 +62,10 @@ pub struct RealtimeArgs {
     /// Do not lock memory with mlockall.
     #[arg(long)]
     pub no_mlockall: bool,
+    /// Let CPUs enter deep idle states between frames (by default skyframe holds
+    /// /dev/cpu_dma_latency at 0 us during the run).
+    #[arg(long)]
+    pub allow_deep_idle: bool,
 }
 
 impl RealtimeArgs {
@@ -70,6 +74,7 @@ impl RealtimeArgs {
             fifo_priority: (self.priority > 0).then_some(self.priority),
             lock_memory: !self.no_mlockall,
             cpu: self.cpu,
+            cpu_dma_latency_us: (!self.allow_deep_idle).then_some(0),
             ..RtConfig::default()
         }
     }
@@ -87,6 +92,13 @@ pub struct SimArgs {
     /// Print the end-of-run summary as one JSON object.
     #[arg(long)]
     pub json: bool,
+    /// Milliseconds of timer measurement before the first frame (0 skips the check).
+    #[arg(long, default_value_t = 200)]
+    pub timer_check_ms: u64,
+    /// Refuse to fly when the timer check finds wake-ups later than the frame margin
+    /// (default: warn and fly).
+    #[arg(long)]
+    pub refuse_late_timer: bool,
     #[command(flatten)]
     pub realtime: RealtimeArgs,
 }
@@ -241,10 +253,13 @@ fn run<P: Platform>(platform: &P, command: Command) -> Result<ExitCode, String> 
                 &SHIPPED,
                 &mut tasks,
                 RunOptions {
-                    duration: Some(Duration::from_secs_f64(args.duration)),
                     faults,
                     realtime: args.realtime.config(),
-                    stop: &stop,
+                    timer_check: TimerCheckConfig {
+                        duration: Duration::from_millis(args.timer_check_ms),
+                        refuse_if_over_margin: args.refuse_late_timer,
+                    },
+                    ..RunOptions::new(Some(Duration::from_secs_f64(args.duration)), &stop)
                 },
                 |_| {},
             )

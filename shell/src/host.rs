@@ -3,6 +3,8 @@
 
 use crate::platform::{Platform, RtConfig, RtReport};
 use crate::ring::RingSink;
+use crate::stats::Distribution;
+use skyframe_core::executive::FrameTimer;
 use skyframe_core::executive::{
     Executive, FaultPlan, FrameRecord, FrameStats, StartError, Task, TaskHealth,
 };
@@ -23,12 +25,80 @@ pub enum StopReason {
     Requested,
 }
 
+/// The start-up check of the timer: sleep to absolute deadlines for a moment before the
+/// first frame and see how late the wake-ups are, against the frame margin.
+#[derive(Clone, Debug)]
+pub struct TimerCheckConfig {
+    /// How long to measure; zero skips the check.
+    pub duration: Duration,
+    /// Refuse to fly (instead of warning) when the latency eats the frame margin.
+    pub refuse_if_over_margin: bool,
+}
+
+impl Default for TimerCheckConfig {
+    fn default() -> Self {
+        Self {
+            duration: Duration::from_millis(200),
+            refuse_if_over_margin: false,
+        }
+    }
+}
+
+/// What the timer check measured.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct TimerCheck {
+    pub period_us: u64,
+    pub wakeup_latency_us: Distribution,
+    /// The frame margin the latency is compared against.
+    pub margin_us: f64,
+    /// True when the worst wake-up ate the whole margin.
+    pub over_margin: bool,
+}
+
+/// Period of the timer check's wake-ups: fast, to get a few hundred samples in a moment.
+const TIMER_CHECK_PERIOD_NS: u64 = 1_000_000;
+
+fn check_timer<T: FrameTimer>(
+    timer: &T,
+    table: &FrameTable,
+    config: &TimerCheckConfig,
+) -> Option<TimerCheck> {
+    if config.duration.is_zero() {
+        return None;
+    }
+    let never = AtomicBool::new(false);
+    let mut samples =
+        crate::bench::bare_sleep_loop(timer, TIMER_CHECK_PERIOD_NS, config.duration, &never);
+    let latency = Distribution::of(&mut samples).scaled(1e-3);
+    let margin_us = table.margin_ns as f64 / 1e3;
+    Some(TimerCheck {
+        period_us: TIMER_CHECK_PERIOD_NS / 1000,
+        wakeup_latency_us: latency,
+        margin_us,
+        over_margin: latency.max > margin_us,
+    })
+}
+
 pub struct RunOptions<'a> {
     pub duration: Option<Duration>,
+    pub timer_check: TimerCheckConfig,
     pub faults: FaultPlan,
     pub realtime: RtConfig,
     /// Set by signal handlers or a stop command; checked between frames.
     pub stop: &'a AtomicBool,
+}
+
+impl<'a> RunOptions<'a> {
+    /// A run of `duration` with default real-time settings, timer check and no faults.
+    pub fn new(duration: Option<Duration>, stop: &'a AtomicBool) -> Self {
+        Self {
+            duration,
+            timer_check: TimerCheckConfig::default(),
+            faults: FaultPlan::new(),
+            realtime: RtConfig::default(),
+            stop,
+        }
+    }
 }
 
 /// Why a run could not start.
@@ -38,6 +108,9 @@ pub enum HostError {
     Start(StartError),
     /// The OS would not give us a thread (e.g. memory limits).
     Spawn(std::io::Error),
+    /// The timer check found wake-ups later than the frame margin and the run was told to
+    /// refuse in that case.
+    TimerTooLate(TimerCheck),
 }
 
 impl std::fmt::Display for HostError {
@@ -45,6 +118,12 @@ impl std::fmt::Display for HostError {
         match self {
             Self::Start(e) => write!(f, "the executive did not start: {e:?}"),
             Self::Spawn(e) => write!(f, "cannot start a shell thread: {e}"),
+            Self::TimerTooLate(c) => write!(
+                f,
+                "refusing to fly: timer wake-ups up to {:.0} us late exceed the {:.0} us frame \
+                 margin (p99 {:.0} us)",
+                c.wakeup_latency_us.max, c.margin_us, c.wakeup_latency_us.p99
+            ),
         }
     }
 }
@@ -54,6 +133,7 @@ impl std::fmt::Display for HostError {
 pub struct RunSummary {
     pub table: &'static FrameTable,
     pub realtime: RtReport,
+    pub timer_check: Option<TimerCheck>,
     pub stop_reason: StopReason,
     /// Time from the first release to the end of the last frame.
     pub elapsed_ns: u64,
@@ -76,6 +156,19 @@ pub fn run_executive<P: Platform>(
         log::warn!("{refusal}");
     }
     let timer = platform.timer();
+    let timer_check = check_timer(&timer, table, &options.timer_check);
+    if let Some(check) = timer_check.as_ref().filter(|c| c.over_margin) {
+        if options.timer_check.refuse_if_over_margin {
+            return Err(HostError::TimerTooLate(check.clone()));
+        }
+        log::warn!(
+            "timer wake-ups up to {:.0} us late (p99 {:.0} us) exceed the {:.0} us frame margin: \
+             frames may start late",
+            check.wakeup_latency_us.max,
+            check.wakeup_latency_us.p99,
+            check.margin_us
+        );
+    }
     let (producer, consumer) = rtrb::RingBuffer::<FrameRecord>::new(TIMING_RING);
     let executive_done = AtomicBool::new(false);
 
@@ -100,6 +193,7 @@ pub fn run_executive<P: Platform>(
             .map(|(stop_reason, elapsed_ns, frames, health)| RunSummary {
                 table,
                 realtime,
+                timer_check,
                 stop_reason,
                 elapsed_ns,
                 frames,
@@ -110,7 +204,7 @@ pub fn run_executive<P: Platform>(
 
 type Flown = (StopReason, u64, FrameStats, Vec<TaskHealth>);
 
-fn fly<T: skyframe_core::executive::FrameTimer>(
+fn fly<T: FrameTimer>(
     table: &'static FrameTable,
     timer: &T,
     tasks: &mut [&mut dyn Task],
@@ -207,11 +301,72 @@ mod tests {
 
     fn options(stop: &AtomicBool, seconds: u64, faults: FaultPlan) -> RunOptions<'_> {
         RunOptions {
-            duration: Some(Duration::from_secs(seconds)),
             faults,
-            realtime: RtConfig::default(),
-            stop,
+            ..RunOptions::new(Some(Duration::from_secs(seconds)), stop)
         }
+    }
+
+    /// Virtual time whose every wake-up is 3 ms late (more than the shipped 2 ms margin).
+    struct Oversleeping;
+    struct LateClock(VirtualClock);
+    impl skyframe_core::executive::Clock for LateClock {
+        fn now_ns(&self) -> u64 {
+            self.0.now_ns()
+        }
+    }
+    impl FrameTimer for LateClock {
+        fn sleep_until(&self, t_ns: u64) {
+            self.0.sleep_until(t_ns + 3_000_000);
+        }
+    }
+    impl Platform for Oversleeping {
+        type Timer = LateClock;
+        fn name(&self) -> &'static str {
+            "oversleeping"
+        }
+        fn timer(&self) -> LateClock {
+            LateClock(VirtualClock::new())
+        }
+        fn virtual_time(&self) -> bool {
+            true
+        }
+        fn make_realtime(&self, _config: &RtConfig) -> RtReport {
+            RtReport::none()
+        }
+    }
+
+    #[test]
+    fn timer_check_refuses_or_warns_when_wakeups_eat_the_margin() {
+        let stop = AtomicBool::new(false);
+        let mut idle = idle_tasks(SHIPPED.tasks.len());
+        let mut tasks: Vec<&mut dyn Task> = idle.iter_mut().map(|t| t as &mut dyn Task).collect();
+        let refuse = RunOptions {
+            timer_check: TimerCheckConfig {
+                refuse_if_over_margin: true,
+                ..TimerCheckConfig::default()
+            },
+            ..RunOptions::new(Some(Duration::from_secs(1)), &stop)
+        };
+        match run_executive(&Oversleeping, &SHIPPED, &mut tasks, refuse, |_| {}) {
+            Err(HostError::TimerTooLate(check)) => {
+                assert_eq!(check.wakeup_latency_us.max, 3000.0);
+                assert_eq!(check.margin_us, 2000.0);
+            }
+            other => panic!("expected a refusal, got {other:?}"),
+        }
+        let warn = RunOptions::new(Some(Duration::from_secs(1)), &stop);
+        let summary =
+            run_executive(&Oversleeping, &SHIPPED, &mut tasks, warn, |_| {}).expect("flies");
+        let check = summary.timer_check.expect("checked");
+        assert!(check.over_margin);
+        assert_eq!(
+            check.wakeup_latency_us.count, 200,
+            "200 ms of 1 ms wake-ups"
+        );
+        assert_eq!(
+            summary.frames.late, summary.frames.frames,
+            "every frame starts 3 ms late"
+        );
     }
 
     #[test]

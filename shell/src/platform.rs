@@ -15,6 +15,10 @@ pub struct RtConfig {
     /// Timer slack of the executive thread (Linux coalesces wake-ups within it; 1 ns asks
     /// for none).
     pub timer_slack_ns: Option<u64>,
+    /// Ask the kernel to keep CPUs out of idle states slower to leave than this (Linux
+    /// `/dev/cpu_dma_latency`, held for the whole run). 0 keeps them awake: the lowest
+    /// wake-up latency, at the cost of power.
+    pub cpu_dma_latency_us: Option<u32>,
 }
 
 impl Default for RtConfig {
@@ -24,6 +28,7 @@ impl Default for RtConfig {
             lock_memory: true,
             cpu: None,
             timer_slack_ns: Some(1),
+            cpu_dma_latency_us: Some(0),
         }
     }
 }
@@ -64,6 +69,7 @@ pub struct RtReport {
     pub mlockall: Setting<String>,
     pub cpu: Setting<usize>,
     pub timer_slack_ns: Setting<u64>,
+    pub cpu_dma_latency_us: Setting<u32>,
 }
 
 impl RtReport {
@@ -74,6 +80,7 @@ impl RtReport {
             mlockall: Setting::NotAsked,
             cpu: Setting::NotAsked,
             timer_slack_ns: Setting::NotAsked,
+            cpu_dma_latency_us: Setting::NotAsked,
         }
     }
 
@@ -97,6 +104,11 @@ impl RtReport {
         }
         if let Some(e) = self.timer_slack_ns.refusal() {
             out.push(format!("timer slack refused ({e})"));
+        }
+        if let Some(e) = self.cpu_dma_latency_us.refusal() {
+            out.push(format!(
+                "cpu_dma_latency refused ({e}): CPUs may sleep deeply between frames"
+            ));
         }
         out
     }

@@ -1,6 +1,6 @@
 //! The end-of-run summary, for people and as JSON.
 
-use crate::host::{RunSummary, StopReason};
+use crate::host::{RunSummary, StopReason, TimerCheck};
 use crate::platform::RtReport;
 use serde::Serialize;
 use skyframe_core::tasks::health::WatchdogReport;
@@ -43,6 +43,8 @@ pub struct SummaryReport {
     pub max_frame_work_us: f64,
     pub timing_records_dropped: u64,
     pub realtime: RtReport,
+    /// The start-up timer check, when it ran.
+    pub timer_check: Option<TimerCheck>,
     pub watchdog_checks: u32,
     pub tasks: Vec<TaskReport>,
 }
@@ -71,6 +73,7 @@ impl From<&RunSummary> for SummaryReport {
             max_frame_work_us: us(s.frames.max_frame_work_ns),
             timing_records_dropped: s.frames.timing_records_dropped,
             realtime: s.realtime.clone(),
+            timer_check: s.timer_check.clone(),
             watchdog_checks: 0,
             tasks: s
                 .table
