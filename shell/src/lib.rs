@@ -12,6 +12,7 @@ pub mod cli;
 pub mod cyclictest;
 pub mod host;
 pub mod idle;
+pub mod logwriter;
 pub mod platform;
 pub mod ring;
 pub mod serial;

@@ -1,0 +1,557 @@
+//! The log writer thread: the only code that touches log files.
+//!
+//! Each log stream (one per task, plus the executive's timing records) has its own rtrb byte
+//! ring. Producers push whole binary records (`log-format.md`) or nothing: a record that does
+//! not fit is dropped and counted, the frame never waits. The writer drains the rings into
+//! files, flushing to the OS every `flush_every` and forcing to disk (`fsync`) every
+//! `fsync_every`, so after `kill -9` everything flushed survives and after a power cut
+//! everything up to the last fsync does; the converter reads the rest up to the torn tail.
+//!
+//! Files rotate at `rotate_bytes`: the old file gets an End Data record and the new one a
+//! Begin Data record plus the stream's format declarations, so every file stands alone.
+//! A write error (disk full) stops that stream with a visible flag; everything else keeps
+//! going.
+
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+const BEGIN_DATA: u8 = 0xBD;
+const END_DATA: u8 = 0xED;
+const FORMAT_COMMENT: u8 = 0xFC;
+const FORMAT_DEFINITION: u8 = 0xFD;
+const DATA_BLOCK: u8 = 0xDB;
+const BYTE_ARRAY: u8 = 0xBA;
+const BYTE_ARRAY_OLD: u8 = 0xDA;
+
+#[derive(Clone, Debug)]
+pub struct WriterConfig {
+    /// The flight's directory (created if missing).
+    pub dir: PathBuf,
+    pub rotate_bytes: u64,
+    pub flush_every: Duration,
+    pub fsync_every: Duration,
+    /// How long the writer sleeps when every ring is empty.
+    pub idle_poll: Duration,
+}
+
+impl WriterConfig {
+    pub fn new(dir: PathBuf) -> Self {
+        Self {
+            dir,
+            rotate_bytes: 64 * 1024 * 1024,
+            flush_every: Duration::from_millis(100),
+            fsync_every: Duration::from_secs(1),
+            idle_poll: Duration::from_millis(5),
+        }
+    }
+}
+
+/// Counters of one stream, shared lock-free with the executive (health, telemetry).
+#[derive(Debug, Default)]
+pub struct StreamStatus {
+    pub records_written: AtomicU64,
+    pub bytes_written: AtomicU64,
+    /// Records the producer could not fit into the ring.
+    pub records_dropped: AtomicU64,
+    /// Records drained after the stream failed, and so never written.
+    pub records_lost: AtomicU64,
+    /// Set once a write failed; the stream writes nothing more.
+    pub failed: AtomicBool,
+    /// Files this stream has written (1 + rotations).
+    pub files: AtomicU32,
+    /// Bytes in the ring that started no record (a producer bug), skipped.
+    pub garbage_bytes: AtomicU64,
+}
+
+/// The producer end of a stream: push whole records, never wait.
+pub struct LogStream {
+    producer: rtrb::Producer<u8>,
+    pub status: Arc<StreamStatus>,
+}
+
+impl LogStream {
+    /// Queues one encoded record; `false` (and a count) when it does not fit whole.
+    pub fn push_record(&mut self, record: &[u8]) -> bool {
+        if self.producer.slots() < record.len() {
+            self.status.records_dropped.fetch_add(1, Ordering::Relaxed);
+            return false;
+        }
+        match self.producer.write_chunk_uninit(record.len()) {
+            Ok(chunk) => {
+                chunk.fill_from_iter(record.iter().copied());
+                true
+            }
+            Err(_) => {
+                self.status.records_dropped.fetch_add(1, Ordering::Relaxed);
+                false
+            }
+        }
+    }
+}
+
+/// A stream as the writer thread sees it.
+struct Drain {
+    name: String,
+    consumer: rtrb::Consumer<u8>,
+    status: Arc<StreamStatus>,
+    /// Format definitions and comments seen so far, re-emitted at the top of rotated files.
+    declarations: Vec<u8>,
+    /// Bytes read from the ring that do not yet make a whole record.
+    pending: Vec<u8>,
+    file: Option<BufWriter<File>>,
+    file_bytes: u64,
+    sequence: u32,
+    last_time: [u8; 8],
+}
+
+/// Starts the writer thread. Add streams with [`LogWriter::stream`] before `start`.
+pub struct LogWriter {
+    config: WriterConfig,
+    drains: Vec<Drain>,
+}
+
+/// The running writer: stop it to drain every ring, close and fsync every file.
+pub struct WriterHandle {
+    stop: Arc<AtomicBool>,
+    join: Option<JoinHandle<Vec<PathBuf>>>,
+}
+
+impl LogWriter {
+    pub fn new(config: WriterConfig) -> Self {
+        Self {
+            config,
+            drains: Vec::new(),
+        }
+    }
+
+    /// A new stream writing `<dir>/<name>.bin` (then `<name>.1.bin`, … on rotation), with a
+    /// ring of `ring_bytes`.
+    pub fn stream(&mut self, name: &str, ring_bytes: usize) -> LogStream {
+        let (producer, consumer) = rtrb::RingBuffer::new(ring_bytes);
+        let status = Arc::new(StreamStatus::default());
+        self.drains.push(Drain {
+            name: name.to_string(),
+            consumer,
+            status: Arc::clone(&status),
+            declarations: Vec::new(),
+            pending: Vec::new(),
+            file: None,
+            file_bytes: 0,
+            sequence: 0,
+            last_time: [0; 8],
+        });
+        LogStream { producer, status }
+    }
+
+    pub fn start(self) -> std::io::Result<WriterHandle> {
+        std::fs::create_dir_all(&self.config.dir)?;
+        let stop = Arc::new(AtomicBool::new(false));
+        let thread_stop = Arc::clone(&stop);
+        let join = std::thread::Builder::new()
+            .name("log-writer".into())
+            .spawn(move || writer_thread(self.config, self.drains, &thread_stop))?;
+        Ok(WriterHandle {
+            stop,
+            join: Some(join),
+        })
+    }
+}
+
+impl WriterHandle {
+    /// Drains every ring, writes, fsyncs and closes every file; returns the files written.
+    pub fn finish(mut self) -> Vec<PathBuf> {
+        self.stop.store(true, Ordering::Release);
+        self.join
+            .take()
+            .and_then(|j| j.join().ok())
+            .unwrap_or_default()
+    }
+}
+
+impl Drop for WriterHandle {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Release);
+        if let Some(j) = self.join.take() {
+            let _ = j.join();
+        }
+    }
+}
+
+/// What the bytes at the head of a ring hold.
+enum Head {
+    /// Not enough bytes for the record's header or body yet.
+    Incomplete,
+    /// A whole record of this many bytes.
+    Record(usize),
+    /// A byte that starts no record. Producers only push records they encoded, so this is a
+    /// bug upstream; the byte is skipped and counted rather than written or wedging the ring.
+    Garbage,
+}
+
+fn head(bytes: &[u8]) -> Head {
+    let Some(&[kind, _, lo, hi]) = bytes.get(..4) else {
+        return Head::Incomplete;
+    };
+    let n = usize::from(u16::from_le_bytes([lo, hi]));
+    let len = match kind {
+        BEGIN_DATA | END_DATA => 12,
+        FORMAT_COMMENT | FORMAT_DEFINITION => 4 + n,
+        DATA_BLOCK | BYTE_ARRAY | BYTE_ARRAY_OLD => 12 + n,
+        _ => return Head::Garbage,
+    };
+    if bytes.len() >= len {
+        Head::Record(len)
+    } else {
+        Head::Incomplete
+    }
+}
+
+fn marker(kind: u8, time: [u8; 8]) -> [u8; 12] {
+    let mut r = [0u8; 12];
+    r[0] = kind;
+    r[4..].copy_from_slice(&time);
+    r
+}
+
+impl Drain {
+    fn path(&self, dir: &Path) -> PathBuf {
+        if self.sequence == 0 {
+            dir.join(format!("{}.bin", self.name))
+        } else {
+            dir.join(format!("{}.{}.bin", self.name, self.sequence))
+        }
+    }
+
+    fn open(&mut self, dir: &Path, files: &mut Vec<PathBuf>) -> std::io::Result<()> {
+        let path = self.path(dir);
+        let file = File::create(&path)?;
+        // The new directory entry must survive a power cut too.
+        File::open(dir).and_then(|d| d.sync_all())?;
+        let mut w = BufWriter::with_capacity(64 * 1024, file);
+        if self.sequence > 0 {
+            w.write_all(&self.declarations)?;
+            w.write_all(&marker(BEGIN_DATA, self.last_time))?;
+            self.file_bytes = self.declarations.len() as u64 + 12;
+        } else {
+            self.file_bytes = 0;
+        }
+        self.status.files.fetch_add(1, Ordering::Relaxed);
+        files.push(path);
+        self.file = Some(w);
+        Ok(())
+    }
+
+    fn close(&mut self) -> std::io::Result<()> {
+        if let Some(mut w) = self.file.take() {
+            w.flush()?;
+            w.get_ref().sync_all()?;
+        }
+        Ok(())
+    }
+
+    fn write_record(
+        &mut self,
+        record: &[u8],
+        config: &WriterConfig,
+        files: &mut Vec<PathBuf>,
+    ) -> std::io::Result<()> {
+        match record.first() {
+            Some(&FORMAT_DEFINITION) | Some(&FORMAT_COMMENT) => {
+                self.declarations.extend_from_slice(record)
+            }
+            Some(&k) if k != FORMAT_DEFINITION && record.len() >= 12 => {
+                if let Some(t) = record.get(4..12) {
+                    self.last_time.copy_from_slice(t);
+                }
+            }
+            _ => {}
+        }
+        if self.file.is_none() {
+            self.open(&config.dir, files)?;
+        }
+        if let Some(w) = self.file.as_mut() {
+            w.write_all(record)?;
+        }
+        self.file_bytes += record.len() as u64;
+        self.status
+            .bytes_written
+            .fetch_add(record.len() as u64, Ordering::Relaxed);
+        self.status.records_written.fetch_add(1, Ordering::Relaxed);
+        if self.file_bytes >= config.rotate_bytes {
+            if let Some(w) = self.file.as_mut() {
+                w.write_all(&marker(END_DATA, self.last_time))?;
+            }
+            self.close()?;
+            self.sequence += 1;
+            self.open(&config.dir, files)?;
+        }
+        Ok(())
+    }
+
+    /// Moves everything in the ring to the file. Returns whether anything was read.
+    fn drain(&mut self, config: &WriterConfig, files: &mut Vec<PathBuf>) -> bool {
+        let available = self.consumer.slots();
+        if available == 0 {
+            return false;
+        }
+        if let Ok(chunk) = self.consumer.read_chunk(available) {
+            let (a, b) = chunk.as_slices();
+            self.pending.extend_from_slice(a);
+            self.pending.extend_from_slice(b);
+            chunk.commit_all();
+        }
+        let mut at = 0;
+        let pending = std::mem::take(&mut self.pending);
+        loop {
+            let rest = pending.get(at..).unwrap_or_default();
+            let len = match head(rest) {
+                Head::Incomplete => break,
+                Head::Garbage => {
+                    self.status.garbage_bytes.fetch_add(1, Ordering::Relaxed);
+                    at += 1;
+                    continue;
+                }
+                Head::Record(len) => len,
+            };
+            let Some(record) = rest.get(..len) else { break };
+            if self.status.failed.load(Ordering::Relaxed) {
+                self.status.records_lost.fetch_add(1, Ordering::Relaxed);
+            } else if let Err(e) = self.write_record(record, config, files) {
+                log::error!(
+                    "log {}: write failed, logging stopped for this stream: {e}",
+                    self.name
+                );
+                self.status.failed.store(true, Ordering::Relaxed);
+                self.status.records_lost.fetch_add(1, Ordering::Relaxed);
+                self.file = None;
+            }
+            at += len;
+        }
+        self.pending = pending.get(at..).map(<[u8]>::to_vec).unwrap_or_default();
+        true
+    }
+
+    fn flush(&mut self, sync: bool) {
+        if self.status.failed.load(Ordering::Relaxed) {
+            return;
+        }
+        let result = self.file.as_mut().map_or(Ok(()), |w| {
+            w.flush()?;
+            if sync {
+                w.get_ref().sync_data()
+            } else {
+                Ok(())
+            }
+        });
+        if let Err(e) = result {
+            log::error!(
+                "log {}: flush failed, logging stopped for this stream: {e}",
+                self.name
+            );
+            self.status.failed.store(true, Ordering::Relaxed);
+            self.file = None;
+        }
+    }
+}
+
+fn writer_thread(config: WriterConfig, mut drains: Vec<Drain>, stop: &AtomicBool) -> Vec<PathBuf> {
+    let mut files = Vec::new();
+    let mut last_flush = Instant::now();
+    let mut last_sync = Instant::now();
+    loop {
+        // Read the flag before draining: whatever was pushed before it was set is drained.
+        let stopping = stop.load(Ordering::Acquire);
+        let mut busy = false;
+        for d in &mut drains {
+            busy |= d.drain(&config, &mut files);
+        }
+        let sync = last_sync.elapsed() >= config.fsync_every;
+        if sync || last_flush.elapsed() >= config.flush_every {
+            for d in &mut drains {
+                d.flush(sync);
+            }
+            last_flush = Instant::now();
+            if sync {
+                last_sync = Instant::now();
+            }
+        }
+        if stopping {
+            break;
+        }
+        if !busy {
+            std::thread::sleep(config.idle_poll);
+        }
+    }
+    for d in &mut drains {
+        if !d.status.failed.load(Ordering::Relaxed)
+            && let Err(e) = d.close()
+        {
+            log::error!("log {}: closing failed: {e}", d.name);
+            d.status.failed.store(true, Ordering::Relaxed);
+        }
+    }
+    files
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn time(sec: i32, nsec: u32) -> [u8; 8] {
+        let mut t = [0u8; 8];
+        t[..4].copy_from_slice(&sec.to_le_bytes());
+        t[4..].copy_from_slice(&nsec.to_le_bytes());
+        t
+    }
+
+    fn declaration(kind: u8, index: u8, text: &str) -> Vec<u8> {
+        let mut r = vec![kind, index];
+        r.extend_from_slice(&(text.len() as u16).to_le_bytes());
+        r.extend_from_slice(text.as_bytes());
+        r
+    }
+
+    fn data(index: u8, sec: i32, value: u32) -> Vec<u8> {
+        let mut r = vec![DATA_BLOCK, index, 4, 0];
+        r.extend_from_slice(&time(sec, 0));
+        r.extend_from_slice(&value.to_le_bytes());
+        r
+    }
+
+    fn scratch(name: &str) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("skyframe-logw-{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        dir
+    }
+
+    fn config(dir: &Path) -> WriterConfig {
+        WriterConfig {
+            idle_poll: Duration::from_millis(1),
+            ..WriterConfig::new(dir.to_path_buf())
+        }
+    }
+
+    #[test]
+    fn records_reach_the_file_in_order_and_whole() {
+        let dir = scratch("order");
+        let mut writer = LogWriter::new(config(&dir));
+        let mut imu = writer.stream("imu", 4096);
+        let handle = writer.start().expect("starts");
+        let mut expected = Vec::new();
+        for r in [
+            declaration(FORMAT_DEFINITION, 1, "%u"),
+            declaration(FORMAT_COMMENT, 1, "n"),
+            marker(BEGIN_DATA, time(1, 0)).to_vec(),
+        ] {
+            assert!(imu.push_record(&r));
+            expected.extend_from_slice(&r);
+        }
+        for i in 0..500 {
+            let r = data(1, 2, i);
+            while !imu.push_record(&r) {
+                std::thread::sleep(Duration::from_millis(1));
+            }
+            expected.extend_from_slice(&r);
+        }
+        let files = handle.finish();
+        assert_eq!(files, vec![dir.join("imu.bin")]);
+        assert_eq!(std::fs::read(dir.join("imu.bin")).expect("file"), expected);
+        assert_eq!(imu.status.records_written.load(Ordering::Relaxed), 503);
+    }
+
+    #[test]
+    fn a_full_ring_drops_whole_records_and_counts_them() {
+        let dir = scratch("full");
+        let mut writer = LogWriter::new(config(&dir));
+        let mut gps = writer.stream("gps", 40);
+        // Writer not started: the ring fills. 16-byte records: two fit in 40 bytes, not three.
+        assert!(gps.push_record(&data(1, 0, 1)));
+        assert!(gps.push_record(&data(1, 0, 2)));
+        assert!(!gps.push_record(&data(1, 0, 3)));
+        assert_eq!(gps.status.records_dropped.load(Ordering::Relaxed), 1);
+        let files = writer.start().expect("starts").finish();
+        let bytes = std::fs::read(&files[0]).expect("file");
+        assert_eq!(bytes.len(), 32, "two whole records, no partial third");
+    }
+
+    #[test]
+    fn rotation_makes_every_file_stand_alone() {
+        let dir = scratch("rotate");
+        let mut writer = LogWriter::new(WriterConfig {
+            rotate_bytes: 200,
+            ..config(&dir)
+        });
+        let mut s = writer.stream("servo", 8192);
+        let def = declaration(FORMAT_DEFINITION, 1, "%u");
+        let com = declaration(FORMAT_COMMENT, 1, "n");
+        s.push_record(&def);
+        s.push_record(&com);
+        s.push_record(&marker(BEGIN_DATA, time(1, 0)));
+        for i in 0..40 {
+            s.push_record(&data(1, 10 + i as i32, i));
+        }
+        s.push_record(&marker(END_DATA, time(60, 0)));
+        let files = writer.start().expect("starts").finish();
+        assert!(files.len() >= 3, "{files:?}");
+        let mut values = Vec::new();
+        for (n, f) in files.iter().enumerate() {
+            let bytes = std::fs::read(f).expect("file");
+            assert_eq!(bytes[0], FORMAT_DEFINITION, "{f:?} starts with its formats");
+            if n > 0 {
+                let begin = def.len() + com.len();
+                assert_eq!(bytes[begin], BEGIN_DATA, "{f:?}");
+            }
+            assert_eq!(bytes[bytes.len() - 12], END_DATA, "{f:?} closed cleanly");
+            let mut at = 0;
+            while at < bytes.len() {
+                let Head::Record(len) = head(&bytes[at..]) else {
+                    panic!("torn record in {f:?}")
+                };
+                if bytes[at] == DATA_BLOCK {
+                    values.push(u32::from_le_bytes(
+                        bytes[at + 12..at + 16].try_into().expect("4"),
+                    ));
+                }
+                at += len;
+            }
+        }
+        assert_eq!(
+            values,
+            (0..40).collect::<Vec<_>>(),
+            "nothing lost or repeated across files"
+        );
+    }
+
+    #[test]
+    fn a_write_error_stops_only_that_stream_and_is_flagged() {
+        let dir = scratch("full-disk");
+        std::fs::create_dir_all(&dir).expect("dir");
+        // /dev/full accepts the open and fails every write with ENOSPC, like a full disk.
+        std::os::unix::fs::symlink("/dev/full", dir.join("imu.bin")).expect("symlink");
+        let mut writer = LogWriter::new(config(&dir));
+        let mut imu = writer.stream("imu", 4096);
+        let mut gps = writer.stream("gps", 4096);
+        let handle = writer.start().expect("starts");
+        for i in 0..10 {
+            assert!(imu.push_record(&data(1, 0, i)));
+            assert!(gps.push_record(&data(1, 0, i)));
+        }
+        std::thread::sleep(Duration::from_millis(300));
+        for i in 0..10 {
+            assert!(
+                imu.push_record(&data(1, 1, i)),
+                "a failed stream still drains its ring"
+            );
+        }
+        handle.finish();
+        assert!(imu.status.failed.load(Ordering::Relaxed));
+        assert!(imu.status.records_lost.load(Ordering::Relaxed) >= 10);
+        assert!(!gps.status.failed.load(Ordering::Relaxed));
+        assert_eq!(std::fs::read(dir.join("gps.bin")).expect("gps").len(), 160);
+    }
+}
