@@ -10,6 +10,7 @@ pub mod bench;
 pub mod check_schedule;
 pub mod cli;
 pub mod cyclictest;
+pub mod flightdir;
 pub mod host;
 pub mod idle;
 pub mod logwriter;
