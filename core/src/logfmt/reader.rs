@@ -94,8 +94,9 @@ pub enum ProblemKind {
 }
 
 impl ProblemKind {
-    /// Whether the reader resynchronised after this problem (it distrusts the framing),
-    /// rather than skipping one record by its length.
+    /// Whether the reader may resynchronise after this problem (it distrusts the framing),
+    /// rather than skip one record by its length. A data block of the wrong length is skipped
+    /// by its length when another record header follows it, else resynchronised.
     pub fn resynchronises(self) -> bool {
         matches!(
             self,
@@ -343,7 +344,15 @@ impl LogReader {
                 }
             };
             if let Some(kind) = self.content_problem(&frame) {
-                if kind.resynchronises() {
+                let trust_length = match kind {
+                    // A wrong length is either a writer's mistake (the next record follows
+                    // it: skip by the length) or a damaged length field (resynchronise).
+                    ProblemKind::DataLengthMismatch { .. } => {
+                        self.successor_plausible(self.start + frame.total)?
+                    }
+                    kind => !kind.resynchronises(),
+                };
+                if !trust_length {
                     self.start_resync(offset, kind);
                     continue;
                 }

@@ -1,0 +1,81 @@
+//! `skyframe-log`: reads skyframe's binary flight logs (`shared/specs/log-format.md`), the
+//! successor of the thesis's ReadUavLogs.
+//!
+//! Exit status: 0 when every file was whole, 3 when anything was reported (damage, a file not
+//! closed cleanly; each report on stderr with the file name and offset), 2 for usage and I/O
+//! errors.
+
+mod info;
+mod input;
+mod to_csv;
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+#[derive(Parser)]
+#[command(
+    name = "skyframe-log",
+    version,
+    about = "Read skyframe binary flight logs: summarise them or convert them to CSV",
+    long_about = "Read skyframe binary flight logs (shared/specs/log-format.md).\n\n\
+        Damaged files (truncated tail, garbage, malformed records) are read as far as \
+        possible; every problem is reported on stderr as `FILE: offset N: ...`.\n\n\
+        Exit status: 0 every file whole, 3 something was reported, 2 usage or I/O error."
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Summarise log files: formats (index, format string, columns), record counts per
+    /// format, time span, Begin/End pairs, whether each was closed cleanly, damage with
+    /// offsets.
+    Info {
+        /// Binary log files.
+        #[arg(required = true, value_name = "FILE")]
+        files: Vec<PathBuf>,
+    },
+    /// Convert log files to CSV: one `<file stem>.<index>.csv` per format index with data,
+    /// starting with `% format <index>: <format string>` and `% time,<columns>` comment
+    /// lines, then one `<tv_sec>.<tv_nsec>,<record text>` line per record.
+    ToCsv {
+        /// Binary log files, or directories whose files (not `*.csv`, not hidden, not in
+        /// subdirectories) are all converted.
+        #[arg(required = true, value_name = "FILE|DIR")]
+        inputs: Vec<PathBuf>,
+        /// Where to write the CSV files (created if missing). Default: beside each input.
+        #[arg(long, value_name = "DIR")]
+        out_dir: Option<PathBuf>,
+    },
+}
+
+/// How a run went, worst first when combined.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Outcome {
+    Whole,
+    Reported,
+    Failed,
+}
+
+impl Outcome {
+    fn exit_code(self) -> ExitCode {
+        match self {
+            Outcome::Whole => ExitCode::SUCCESS,
+            Outcome::Reported => ExitCode::from(3),
+            Outcome::Failed => ExitCode::from(2),
+        }
+    }
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let outcome = match cli.command {
+        Command::Info { files } => info::run(&files),
+        Command::ToCsv { inputs, out_dir } => to_csv::run(&inputs, out_dir.as_deref()),
+    };
+    outcome.exit_code()
+}
