@@ -8,6 +8,7 @@
 mod info;
 mod input;
 mod to_csv;
+mod to_ulog;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -51,6 +52,16 @@ enum Command {
         #[arg(long, value_name = "DIR")]
         out_dir: Option<PathBuf>,
     },
+    /// Convert a log file to a PX4 ULog file: one message `log_<index>` per format, with a
+    /// `timestamp` (µs) and the format's columns as fields. Byte arrays are not converted.
+    ToUlog {
+        /// Binary log file.
+        #[arg(value_name = "FILE")]
+        file: PathBuf,
+        /// The ULog file to write.
+        #[arg(short, long, value_name = "OUT.ulg")]
+        output: PathBuf,
+    },
 }
 
 /// How a run went, worst first when combined.
@@ -76,6 +87,7 @@ fn main() -> ExitCode {
     let outcome = match cli.command {
         Command::Info { files } => info::run(&files),
         Command::ToCsv { inputs, out_dir } => to_csv::run(&inputs, out_dir.as_deref()),
+        Command::ToUlog { file, output } => to_ulog::run(&file, &output),
     };
     outcome.exit_code()
 }
