@@ -18,7 +18,10 @@ pub mod record;
 
 pub use format::{Conversion, Field, FieldType, Flags, Format, FormatError, MAX_FIELDS};
 pub use frame_log::{FrameLogFormat, encode_frame_record};
-pub use printf::{RenderError, Value, render_byte_array, render_data_block, render_field};
+pub use printf::{
+    ByteWrite, RenderError, Value, render_byte_array, render_byte_array_bytes, render_data_block,
+    render_data_block_bytes, render_field, render_field_bytes,
+};
 pub use reader::{Event, LogReader, Problem, ProblemKind, Record, read_slice};
 pub use record::{
     DataBlockWriter, EncodeError, LogFormat, MAX_RECORD_LEN, Time, encode_begin_data,

@@ -105,9 +105,42 @@ impl From<fmt::Error> for RenderError {
     }
 }
 
+/// Where rendered text goes when it must be byte-exact: C's `%c` prints any byte, and a
+/// byte above 0x7f on its own is not UTF-8, so it cannot go through [`Write`].
+pub trait ByteWrite: Write {
+    fn write_byte(&mut self, byte: u8) -> fmt::Result;
+}
+
+/// Adapts a [`Write`] (e.g. a `String`): `%c` of a byte above 0x7f becomes the Latin-1
+/// character of that value, the only lossless stand-in text can hold.
+struct Latin1<'a, W: Write + ?Sized>(&'a mut W);
+
+impl<W: Write + ?Sized> Write for Latin1<'_, W> {
+    fn write_str(&mut self, s: &str) -> fmt::Result {
+        self.0.write_str(s)
+    }
+}
+
+impl<W: Write + ?Sized> ByteWrite for Latin1<'_, W> {
+    fn write_byte(&mut self, byte: u8) -> fmt::Result {
+        self.0.write_char(char::from(byte))
+    }
+}
+
 /// Writes what `printf(text, fields...)` prints for a data block of `format` (parsed from
-/// `text`).
-pub fn render_data_block<W: Write>(
+/// `text`). A `%c` of a byte above 0x7f prints as its Latin-1 character; use
+/// [`render_data_block_bytes`] for C's exact bytes.
+pub fn render_data_block<W: Write + ?Sized>(
+    out: &mut W,
+    text: &str,
+    format: &Format,
+    data: &[u8],
+) -> Result<(), RenderError> {
+    render_data_block_bytes(&mut Latin1(out), text, format, data)
+}
+
+/// Writes exactly the bytes `printf(text, fields...)` prints for a data block of `format`.
+pub fn render_data_block_bytes<W: ByteWrite + ?Sized>(
     out: &mut W,
     text: &str,
     format: &Format,
@@ -125,7 +158,7 @@ pub fn render_data_block<W: Write>(
         write_literal(out, literal)?;
         let bytes = data.get(data_offset..).ok_or(RenderError::DataMismatch)?;
         let value = Value::decode(field.ty, bytes).ok_or(RenderError::DataMismatch)?;
-        render_field(out, field, value)?;
+        render_field_bytes(out, field, value)?;
         data_offset += field.ty.size();
         literal_start = usize::from(field.span_end);
     }
@@ -134,8 +167,19 @@ pub fn render_data_block<W: Write>(
     Ok(())
 }
 
-/// Writes a byte array's text: each byte printed with the format, joined by `,`.
-pub fn render_byte_array<W: Write>(
+/// Writes a byte array's text: each byte printed with the format, joined by `,` (`%c` above
+/// 0x7f as Latin-1, as [`render_data_block`]).
+pub fn render_byte_array<W: Write + ?Sized>(
+    out: &mut W,
+    text: &str,
+    format: &Format,
+    bytes: &[u8],
+) -> Result<(), RenderError> {
+    render_byte_array_bytes(&mut Latin1(out), text, format, bytes)
+}
+
+/// Writes exactly the bytes of a byte array's text.
+pub fn render_byte_array_bytes<W: ByteWrite + ?Sized>(
     out: &mut W,
     text: &str,
     format: &Format,
@@ -148,13 +192,13 @@ pub fn render_byte_array<W: Write>(
         if i > 0 {
             out.write_char(',')?;
         }
-        render_data_block(out, text, format, core::slice::from_ref(byte))?;
+        render_data_block_bytes(out, text, format, core::slice::from_ref(byte))?;
     }
     Ok(())
 }
 
 /// Literal text between conversions: `%%` prints `%` (the parser allows no other `%`).
-fn write_literal<W: Write>(out: &mut W, literal: &str) -> fmt::Result {
+fn write_literal<W: ByteWrite + ?Sized>(out: &mut W, literal: &str) -> fmt::Result {
     let mut rest = literal;
     while let Some(percent) = rest.find("%%") {
         out.write_str(rest.get(..=percent).unwrap_or(""))?;
@@ -163,8 +207,18 @@ fn write_literal<W: Write>(out: &mut W, literal: &str) -> fmt::Result {
     out.write_str(rest)
 }
 
-/// Writes one field's value as its conversion specification prints it.
-pub fn render_field<W: Write>(out: &mut W, field: &Field, value: Value) -> fmt::Result {
+/// Writes one field's value as its conversion specification prints it (`%c` above 0x7f as
+/// Latin-1).
+pub fn render_field<W: Write + ?Sized>(out: &mut W, field: &Field, value: Value) -> fmt::Result {
+    render_field_bytes(&mut Latin1(out), field, value)
+}
+
+/// Writes exactly the bytes one field's conversion specification prints.
+pub fn render_field_bytes<W: ByteWrite + ?Sized>(
+    out: &mut W,
+    field: &Field,
+    value: Value,
+) -> fmt::Result {
     match value {
         Value::F32(v) => render_float(out, field, f64::from(v)),
         Value::F64(v) => render_float(out, field, v),
@@ -181,7 +235,7 @@ pub fn render_field<W: Write>(out: &mut W, field: &Field, value: Value) -> fmt::
 
 /// `signed` is the value as a C signed type of its width, `unsigned` as the unsigned type:
 /// `%d` prints the first, `%u %x %o` the second (as C reinterprets the argument).
-fn render_integer<W: Write>(
+fn render_integer<W: ByteWrite + ?Sized>(
     out: &mut W,
     field: &Field,
     signed: i128,
@@ -189,13 +243,9 @@ fn render_integer<W: Write>(
 ) -> fmt::Result {
     let flags = field.flags;
     if field.conversion == Conversion::Char {
-        // C prints the byte itself; text output can only hold characters, so a byte above
-        // 0x7f prints as the Latin-1 character of that value.
         let byte = u8::try_from(unsigned & 0xff).unwrap_or(b'?');
-        let mut buf = [0u8; 4];
-        let text = char::from(byte).encode_utf8(&mut buf);
         return pad_around(out, flags.has(Flags::LEFT), field.width.into(), 1, |out| {
-            out.write_str(text)
+            out.write_byte(byte)
         });
     }
     let (negative, magnitude, radix) = match field.conversion {
@@ -290,7 +340,7 @@ fn to_digits(mut value: u128, radix: u128, upper: bool, buf: &mut [u8; 48]) -> &
 }
 
 /// Writes `body` (of `body_len` characters) padded with spaces to `width`.
-fn pad_around<W: Write>(
+fn pad_around<W: ByteWrite + ?Sized>(
     out: &mut W,
     left: bool,
     width: usize,
@@ -308,7 +358,7 @@ fn pad_around<W: Write>(
     Ok(())
 }
 
-fn repeat<W: Write>(out: &mut W, c: char, mut count: usize) -> fmt::Result {
+fn repeat<W: ByteWrite + ?Sized>(out: &mut W, c: char, mut count: usize) -> fmt::Result {
     const SPACES: &str = "                                ";
     const ZEROS: &str = "00000000000000000000000000000000";
     let chunk = if c == '0' { ZEROS } else { SPACES };
@@ -376,12 +426,12 @@ impl Probe {
 }
 
 /// Passes the first `remaining` characters of the mantissa (everything before an `e`) through.
-struct Prefix<'a, W: Write> {
+struct Prefix<'a, W: Write + ?Sized> {
     out: &'a mut W,
     remaining: usize,
 }
 
-impl<W: Write> Write for Prefix<'_, W> {
+impl<W: Write + ?Sized> Write for Prefix<'_, W> {
     fn write_str(&mut self, s: &str) -> fmt::Result {
         for c in s.chars() {
             if self.remaining == 0 || c == 'e' {
@@ -409,7 +459,7 @@ fn unrounded_exponent(magnitude: f64) -> Result<i64, fmt::Error> {
     Ok(i64::from(probe.exponent()))
 }
 
-fn render_float<W: Write>(out: &mut W, field: &Field, value: f64) -> fmt::Result {
+fn render_float<W: ByteWrite + ?Sized>(out: &mut W, field: &Field, value: f64) -> fmt::Result {
     let flags = field.flags;
     let upper = field.conversion.is_upper();
     let sign = sign_of(value.is_sign_negative(), flags);

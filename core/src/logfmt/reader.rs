@@ -73,8 +73,15 @@ pub enum ProblemKind {
     BadHeader { type_byte: u8, index: u8, len: u16 },
     /// A TIME whose `tv_nsec` is not below 10⁹.
     BadTime { type_byte: u8, nsec: u32 },
-    /// The record runs past the end of the input (a truncated tail, or a damaged length).
+    /// The last record is cut short: the input ends inside it (power lost mid-write).
     Truncated {
+        type_byte: u8,
+        needed: usize,
+        available: usize,
+    },
+    /// The record's length runs past the end of the input, yet well-formed records follow
+    /// it: the length (or the header) is damaged.
+    LengthPastEnd {
         type_byte: u8,
         needed: usize,
         available: usize,
@@ -104,6 +111,7 @@ impl ProblemKind {
                 | ProblemKind::BadHeader { .. }
                 | ProblemKind::BadTime { .. }
                 | ProblemKind::Truncated { .. }
+                | ProblemKind::LengthPastEnd { .. }
                 | ProblemKind::DataLengthMismatch { .. }
         )
     }
@@ -133,7 +141,17 @@ impl core::fmt::Display for ProblemKind {
                 available,
             } => write!(
                 f,
-                "record type 0x{type_byte:02X} needs {needed} bytes but the file ends after {available}"
+                "truncated record: type 0x{type_byte:02X} needs {needed} bytes but the file ends \
+                 after {available}"
+            ),
+            ProblemKind::LengthPastEnd {
+                type_byte,
+                needed,
+                available,
+            } => write!(
+                f,
+                "record type 0x{type_byte:02X} claims {needed} bytes, past the end of the file \
+                 ({available} left), but records follow it: damaged length"
             ),
             ProblemKind::DataLengthMismatch {
                 index,
@@ -311,6 +329,19 @@ impl LogReader {
                     continue;
                 }
                 self.resyncing = None;
+                let kind = match kind {
+                    // Records after a "truncated" one: it was not the tail, its length lied.
+                    ProblemKind::Truncated {
+                        type_byte,
+                        needed,
+                        available,
+                    } if self.start < self.end => ProblemKind::LengthPastEnd {
+                        type_byte,
+                        needed,
+                        available,
+                    },
+                    kind => kind,
+                };
                 return Some(Event::Problem(Problem {
                     offset,
                     kind,
@@ -381,8 +412,11 @@ impl LogReader {
     fn scan_for_record(&mut self) -> Option<bool> {
         while self.start < self.end {
             match self.frame_at(self.start) {
-                FrameCheck::Whole(frame) if self.plausible(&frame) => {
-                    if self.successor_plausible(self.start + frame.total)? {
+                FrameCheck::Whole(frame) => {
+                    // The successor check is O(1); `plausible` may parse a whole format, so
+                    // it runs only on candidates that passed the cheap test.
+                    if self.successor_plausible(self.start + frame.total)? && self.plausible(&frame)
+                    {
                         return Some(true);
                     }
                     self.start += 1;

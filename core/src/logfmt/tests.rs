@@ -219,7 +219,7 @@ fn bad_length_resynchronises_on_the_next_record() {
     assert_eq!(
         events[4..],
         [
-            "69: problem Truncated { type_byte: 219, needed: 65547, available: 42 } -> 99",
+            "69: problem LengthPastEnd { type_byte: 219, needed: 65547, available: 42 } -> 99",
             "99: end 3.000000000",
         ]
         .map(String::from)
@@ -363,9 +363,9 @@ fn shipped_table_has_a_frame_log_format() {
     assert_eq!(log.task_count(), crate::schedule::SHIPPED.tasks.len());
 }
 
-/// The oracle: what the C library prints for one conversion specification and its value.
+/// The oracle: the bytes the C library prints for one conversion specification and its value.
 #[allow(unsafe_code)] // FFI to the C library is the point of an independent oracle.
-fn c_printf(spec: &str, value: Value) -> String {
+fn c_printf(spec: &str, value: Value) -> Vec<u8> {
     let long = spec.contains('l') && !spec.contains("ll");
     let spec = std::ffi::CString::new(spec).expect("no NUL");
     let mut buf = std::vec![0u8; 16384];
@@ -393,8 +393,36 @@ fn c_printf(spec: &str, value: Value) -> String {
     let n = usize::try_from(n).expect("snprintf succeeded");
     assert!(n < cap);
     buf.truncate(n);
-    // %c of a byte above 0x7f: the renderer's documented Latin-1 stand-in.
-    buf.iter().map(|&b| char::from(b)).collect()
+    buf
+}
+
+/// Rendered bytes, exactly as C would print them.
+struct Bytes(Vec<u8>);
+
+impl core::fmt::Write for Bytes {
+    fn write_str(&mut self, s: &str) -> core::fmt::Result {
+        self.0.extend_from_slice(s.as_bytes());
+        Ok(())
+    }
+}
+
+impl ByteWrite for Bytes {
+    fn write_byte(&mut self, byte: u8) -> core::fmt::Result {
+        self.0.push(byte);
+        Ok(())
+    }
+}
+
+#[test]
+fn percent_c_prints_the_raw_byte_or_its_latin1_stand_in() {
+    let format = Format::parse("[%-3c]").expect("valid");
+    let mut raw = Bytes(Vec::new());
+    render_data_block_bytes(&mut raw, "[%-3c]", &format, &[0xE9]).expect("renders");
+    assert_eq!(raw.0, b"[\xE9  ]");
+    assert_eq!(raw.0, c_printf("[%-3c]", Value::U8(0xE9)));
+    let mut text = String::new();
+    render_data_block(&mut text, "[%-3c]", &format, &[0xE9]).expect("renders");
+    assert_eq!(text, "[\u{e9}  ]");
 }
 
 mod round_trip {
@@ -520,8 +548,16 @@ mod round_trip {
         )
     }
 
+    fn cases() -> u32 {
+        std::env::var("PROPTEST_CASES")
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(2000)
+    }
+
     proptest! {
-        #![proptest_config(ProptestConfig { cases: 2000, ..ProptestConfig::default() })]
+        // PROPTEST_CASES raises the count for a longer campaign.
+        #![proptest_config(ProptestConfig::with_cases(cases()))]
 
         #[test]
         fn encode_read_render_equals_c_printf(
@@ -531,15 +567,15 @@ mod round_trip {
             t_ns in 0u64..(i32::MAX as u64 * 1_000_000_000),
         ) {
             let mut format_text = String::new();
-            let mut expected = String::new();
+            let mut expected = Vec::new();
             for piece in &pieces {
                 format_text.push_str(&piece.literal);
                 format_text.push_str(&piece.spec);
-                expected.push_str(&piece.literal.replace("%%", "%"));
-                expected.push_str(&c_printf(&piece.spec, piece.value));
+                expected.extend_from_slice(piece.literal.replace("%%", "%").as_bytes());
+                expected.extend_from_slice(&c_printf(&piece.spec, piece.value));
             }
             format_text.push_str(&tail);
-            expected.push_str(&tail);
+            expected.extend_from_slice(tail.as_bytes());
             let columns: Vec<String> = (0..pieces.len()).map(|i| std::format!("c{i}")).collect();
             let columns = columns.join(",");
 
@@ -556,15 +592,18 @@ mod round_trip {
             let mut lines = Vec::new();
             read_slice(&mut reader, &file[..len], |event| match event {
                 Event::Record { record: Record::DataBlock { format, data, time, .. }, .. } => {
-                    let mut text = std::format!("{time},");
-                    render_data_block(&mut text, &format_text, format, data).expect("renders");
-                    lines.push(text);
+                    let mut text = Bytes(std::format!("{time},").into_bytes());
+                    render_data_block_bytes(&mut text, &format_text, format, data)
+                        .expect("renders");
+                    lines.push(text.0);
                 }
-                Event::Problem(p) => lines.push(std::format!("problem {p:?}")),
+                Event::Problem(p) => lines.push(std::format!("problem {p:?}").into_bytes()),
                 _ => {}
             });
             let time = Time::from_ns(t_ns).expect("in range");
-            prop_assert_eq!(lines, std::vec![std::format!("{time},{expected}")], "format {:?}", format_text);
+            let mut line = std::format!("{time},").into_bytes();
+            line.extend_from_slice(&expected);
+            prop_assert_eq!(lines, std::vec![line], "format {:?}", format_text);
         }
 
         #[test]
@@ -573,16 +612,16 @@ mod round_trip {
             bytes in prop::collection::vec(any::<u8>(), 0..40),
         ) {
             let format = Format::parse(spec).expect("valid");
-            let mut out = String::new();
-            render_byte_array(&mut out, spec, &format, &bytes).expect("renders");
-            let expected: Vec<String> = bytes
+            let mut out = Bytes(Vec::new());
+            render_byte_array_bytes(&mut out, spec, &format, &bytes).expect("renders");
+            let expected: Vec<Vec<u8>> = bytes
                 .iter()
                 .map(|&b| {
                     let value = if spec.contains('d') { Value::I8(b as i8) } else { Value::U8(b) };
                     c_printf(spec, value)
                 })
                 .collect();
-            prop_assert_eq!(out, expected.join(","));
+            prop_assert_eq!(out.0, expected.join(&b","[..]));
         }
 
         #[test]

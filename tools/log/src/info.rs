@@ -194,9 +194,9 @@ impl Summary {
             writeln!(out, "    none")?;
         }
         for (index, counts) in &self.counts {
-            write!(out, "    {index}: {} data blocks", counts.data_blocks)?;
+            write!(out, "    {index}: data blocks {}", counts.data_blocks)?;
             if counts.byte_arrays > 0 {
-                write!(out, ", {} byte arrays", counts.byte_arrays)?;
+                write!(out, ", byte arrays {}", counts.byte_arrays)?;
             }
             writeln!(out)?;
         }
@@ -242,7 +242,7 @@ impl Summary {
                 .sum();
             writeln!(
                 out,
-                "  damage: {} problems, {skipped} bytes skipped",
+                "  damage: problems {}, bytes skipped {skipped}",
                 damage.len()
             )?;
             for p in &damage {

@@ -9,7 +9,8 @@ use std::path::{Path, PathBuf};
 
 use indicatif::ProgressBar;
 use skyframe_core::logfmt::{
-    Event, Format, LogReader, Record, RenderError, Time, render_byte_array, render_data_block,
+    ByteWrite, Event, Format, LogReader, Record, RenderError, Time, render_byte_array_bytes,
+    render_data_block_bytes,
 };
 
 use crate::Outcome;
@@ -84,6 +85,25 @@ pub fn run(inputs: &[PathBuf], out_dir: Option<&Path>) -> Outcome {
     outcome
 }
 
+/// A CSV line as bytes: `%c` prints raw bytes, exactly as C does, even when they are not
+/// UTF-8.
+#[derive(Default)]
+struct Line(Vec<u8>);
+
+impl std::fmt::Write for Line {
+    fn write_str(&mut self, s: &str) -> std::fmt::Result {
+        self.0.extend_from_slice(s.as_bytes());
+        Ok(())
+    }
+}
+
+impl ByteWrite for Line {
+    fn write_byte(&mut self, byte: u8) -> std::fmt::Result {
+        self.0.push(byte);
+        Ok(())
+    }
+}
+
 /// One open CSV and the header it last printed.
 struct CsvOut {
     writer: BufWriter<File>,
@@ -103,7 +123,7 @@ struct Converter<'a> {
     /// Bumped at every Format Definition or Comment of the index.
     versions: Vec<u64>,
     outputs: Vec<Option<CsvOut>>,
-    line: String,
+    line: Line,
     reported: bool,
     /// The first write error; writing stops there.
     error: Option<io::Error>,
@@ -120,7 +140,7 @@ impl<'a> Converter<'a> {
             comments: vec![None; INDEXES],
             versions: vec![0; INDEXES],
             outputs: (0..INDEXES).map(|_| None).collect(),
-            line: String::new(),
+            line: Line::default(),
             reported: false,
             error: None,
         }
@@ -145,7 +165,7 @@ impl<'a> Converter<'a> {
                     data,
                     format,
                 } => self.write_record(offset, index, time, format, |out, text, format| {
-                    render_data_block(out, text, format, data)
+                    render_data_block_bytes(out, text, format, data)
                 }),
                 Record::ByteArray {
                     index,
@@ -154,7 +174,7 @@ impl<'a> Converter<'a> {
                     format,
                     ..
                 } => self.write_record(offset, index, time, format, |out, text, format| {
-                    render_byte_array(out, text, format, bytes)
+                    render_byte_array_bytes(out, text, format, bytes)
                 }),
                 Record::BeginData { .. } | Record::EndData { .. } => {}
             },
@@ -177,7 +197,7 @@ impl<'a> Converter<'a> {
         index: u8,
         time: Time,
         format: &Format,
-        render: impl FnOnce(&mut String, &str, &Format) -> Result<(), RenderError>,
+        render: impl FnOnce(&mut Line, &str, &Format) -> Result<(), RenderError>,
     ) {
         if self.error.is_some() {
             return;
@@ -189,7 +209,7 @@ impl<'a> Converter<'a> {
             .cloned()
             .flatten()
             .unwrap_or_default();
-        self.line.clear();
+        self.line.0.clear();
         let _ = write!(self.line, "{time},");
         if render(&mut self.line, &text, format).is_err() {
             // The reader only yields records that match their format; this is a defect.
@@ -203,7 +223,7 @@ impl<'a> Converter<'a> {
             );
             return;
         }
-        self.line.push('\n');
+        self.line.0.push(b'\n');
         if let Err(e) = self.write_line(slot, index, text) {
             self.error = Some(e);
         }
@@ -242,7 +262,7 @@ impl<'a> Converter<'a> {
                 out.header = Some(header);
             }
         }
-        out.writer.write_all(self.line.as_bytes())
+        out.writer.write_all(&self.line.0)
     }
 
     fn flush(&mut self) -> io::Result<()> {

@@ -85,7 +85,8 @@ fn truncated_tail_keeps_what_came_before_and_exits_3() {
     assert_eq!(
         stderr(&output),
         format!(
-            "{path}: offset 103: record type 0xBA needs 15 bytes but the file ends after 7; \
+            "{path}: offset 103: truncated record: type 0xBA needs 15 bytes but the file ends \
+             after 7; \
              skipped to offset 110\n\
              {path}: offset 110: no final End Data: the file was not closed cleanly\n"
         )
@@ -123,6 +124,23 @@ fn garbage_and_bad_records_are_reported_with_offsets() {
 }
 
 #[test]
+fn percent_c_writes_raw_bytes_like_c() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let log = dir.path().join("chars.bin");
+    #[rustfmt::skip]
+    let bytes: &[u8] = &[
+        0xFD, 4, 2, 0,  b'%', b'c',
+        0xBA, 4, 3, 0,  0, 0, 0, 0,  0, 0, 0, 0,  b'A', 0xE9, b',',
+        0xED, 0, 0, 0,  0, 0, 0, 0,  0, 0, 0, 0,
+    ];
+    std::fs::write(&log, bytes).expect("write");
+    let output = skyframe_log(&["to-csv", log.to_str().expect("utf-8")]);
+    assert_eq!(output.status.code(), Some(0), "stderr: {}", stderr(&output));
+    let csv = std::fs::read(dir.path().join("chars.4.csv")).expect("read");
+    assert_eq!(csv, b"% format 4: %c\n0.000000000,A,\xE9,,\n");
+}
+
+#[test]
 fn info_summarises_a_file() {
     let dir = tempfile::tempdir().expect("temp dir");
     let log = dir.path().join("flight.bin");
@@ -137,8 +155,8 @@ fn info_summarises_a_file() {
     2 (offset 84): %02hhx
       columns: byte
   records per format:
-    1: 1 data blocks
-    2: 0 data blocks, 2 byte arrays
+    1: data blocks 1
+    2: data blocks 0, byte arrays 2
   time span: 1.000000000 to 3.000000000 (2.000000000 s)
   largest time step: 0.999999994 s, to the record at offset 131
   Begin/End pairs:
@@ -164,7 +182,7 @@ fn info_reports_damage_and_exits_3() {
         "{stdout}"
     );
     assert!(
-        stdout.contains("  damage: 1 problems, 7 bytes skipped\n    offset 103..110: record type 0xBA needs 15 bytes"),
+        stdout.contains("  damage: problems 1, bytes skipped 7\n    offset 103..110: truncated record: type 0xBA needs 15 bytes"),
         "{stdout}"
     );
     assert_eq!(stderr(&output).lines().count(), 2);
