@@ -6,6 +6,8 @@
 
 #![no_main]
 
+use std::cell::RefCell;
+
 use libfuzzer_sys::fuzz_target;
 use skyframe_core::logfmt::{
     Event, Format, LogReader, Record, render_byte_array, render_data_block,
@@ -21,7 +23,17 @@ impl core::fmt::Write for Sink {
     }
 }
 
+thread_local! {
+    // One reader for all runs (`reset` between them), as the tool reuses one across files:
+    // it also exercises `reset`, and saves zeroing 300 KB per run.
+    static READER: RefCell<Box<LogReader>> = RefCell::new(Box::new(LogReader::new()));
+}
+
 fuzz_target!(|input: &[u8]| {
+    READER.with(|reader| run(input, &mut reader.borrow_mut()));
+});
+
+fn run(input: &[u8], reader: &mut LogReader) {
     let Some((&chunk_selector, bytes)) = input.split_first() else {
         return;
     };
@@ -38,7 +50,7 @@ fuzz_target!(|input: &[u8]| {
         render_data_block(&mut Sink(0), text, &format, &zeros).expect("a parsed format renders");
     }
 
-    let mut reader = Box::new(LogReader::new());
+    reader.reset();
     let mut texts: Vec<Option<String>> = vec![None; 256];
     let mut last_offset = 0u64;
     let mut on_event = |event: Event<'_>| {
@@ -93,4 +105,4 @@ fuzz_target!(|input: &[u8]| {
         }
     }
     assert!(last_offset <= bytes.len() as u64);
-});
+}
