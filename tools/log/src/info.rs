@@ -13,14 +13,19 @@ use crate::input::{problem_line, progress_bar, read_file, report_line};
 /// also on stderr), so a badly damaged file keeps the summary readable and memory bounded.
 const MAX_LISTED: usize = 1000;
 
-pub fn run(files: &[PathBuf]) -> Outcome {
+pub fn run(files: &[PathBuf], gap_s: f64) -> Outcome {
+    // Seconds to whole ns; NaN or negative: every step is a gap (0), huge: none.
+    let gap_ns = if gap_s.is_nan() { 0.0 } else { gap_s * 1e9 }.clamp(0.0, 1e30) as i128;
     let bar = progress_bar(files);
     let mut reader = Box::new(LogReader::new());
     let mut outcome = Outcome::Whole;
     let stdout = io::stdout();
     for (n, file) in files.iter().enumerate() {
         bar.set_message(file.display().to_string());
-        let mut summary = Summary::default();
+        let mut summary = Summary {
+            gap_ns,
+            ..Summary::default()
+        };
         let read = read_file(file, &mut reader, &bar, |event| {
             if let Event::Problem(problem) = &event {
                 report_line(&bar, &problem_line(file, problem));
@@ -83,6 +88,13 @@ struct Summary {
     problems: Vec<Problem>,
     problem_count: u64,
     closed_cleanly: bool,
+    /// Steps longer than this between records of one format are gaps.
+    gap_ns: i128,
+    /// Per format index, its last data record: (time, offset).
+    last_of_format: BTreeMap<u8, (Time, u64)>,
+    /// (index, length ns, offset before, offset after)
+    gaps: Vec<(u8, i128, u64, u64)>,
+    gap_count: u64,
 }
 
 fn ns(time: Time) -> i128 {
@@ -138,15 +150,29 @@ impl Summary {
                     }
                     Record::DataBlock { index, time, .. } => {
                         self.counts.entry(index).or_default().data_blocks += 1;
+                        self.add_data_time(index, time, offset);
                         Some(time)
                     }
                     Record::ByteArray { index, time, .. } => {
                         self.counts.entry(index).or_default().byte_arrays += 1;
+                        self.add_data_time(index, time, offset);
                         Some(time)
                     }
                 };
                 if let Some(time) = time {
                     self.add_time(time, offset);
+                }
+            }
+        }
+    }
+
+    fn add_data_time(&mut self, index: u8, time: Time, offset: u64) {
+        if let Some((last, last_offset)) = self.last_of_format.insert(index, (time, offset)) {
+            let step = ns(time) - ns(last);
+            if step > self.gap_ns {
+                self.gap_count += 1;
+                if self.gaps.len() < MAX_LISTED {
+                    self.gaps.push((index, step, last_offset, offset));
                 }
             }
         }
@@ -217,6 +243,25 @@ impl Summary {
         }
         if self.backward_steps > 0 {
             writeln!(out, "  time went backwards {} times", self.backward_steps)?;
+        }
+        if self.gap_count == 0 {
+            writeln!(out, "  gaps: none")?;
+        } else {
+            writeln!(out, "  gaps: {}", self.gap_count)?;
+            for &(index, step, before, after) in &self.gaps {
+                writeln!(
+                    out,
+                    "    format {index}: {} s between offsets {before} and {after}",
+                    seconds(step)
+                )?;
+            }
+            if self.gap_count > self.gaps.len() as u64 {
+                writeln!(
+                    out,
+                    "    ... {} more gaps",
+                    self.gap_count - self.gaps.len() as u64
+                )?;
+            }
         }
         self.print_pairs(out)?;
         writeln!(

@@ -32,17 +32,25 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Summarise log files: formats (index, format string, columns), record counts per
-    /// format, time span, Begin/End pairs, whether each was closed cleanly, damage with
-    /// offsets.
+    /// Summarise log files: formats, counts, time span, sessions, damage
+    ///
+    /// For each file: its formats (index, format string, columns), record counts per format,
+    /// time span and largest time step, gaps, Begin/End pairs, whether it was closed cleanly
+    /// (a final End Data), and damage with offsets (also on stderr).
     Info {
         /// Binary log files.
         #[arg(required = true, value_name = "FILE")]
         files: Vec<PathBuf>,
+        /// List as a gap every pause longer than this between two records of the same format.
+        #[arg(long, value_name = "SECONDS", default_value_t = 1.0)]
+        gap_s: f64,
     },
-    /// Convert log files to CSV: one `<file stem>.<index>.csv` per format index with data,
-    /// starting with `% format <index>: <format string>` and `% time,<columns>` comment
-    /// lines, then one `<tv_sec>.<tv_nsec>,<record text>` line per record.
+    /// Convert log files to CSV, one file per format (Matlab-friendly)
+    ///
+    /// Writes `<file stem>.<index>.csv` for each format index with data: first the comment
+    /// lines `% format <index>: <format string>` and `% time,<columns>`, then one line
+    /// `<tv_sec>.<tv_nsec, 9 digits>,<record text>` per record, the text exactly as C's printf
+    /// prints it. Files stream through in constant memory.
     ToCsv {
         /// Binary log files, or directories whose files (not `*.csv`, not hidden, not in
         /// subdirectories) are all converted.
@@ -52,8 +60,11 @@ enum Command {
         #[arg(long, value_name = "DIR")]
         out_dir: Option<PathBuf>,
     },
-    /// Convert a log file to a PX4 ULog file: one message `log_<index>` per format, with a
-    /// `timestamp` (µs) and the format's columns as fields. Byte arrays are not converted.
+    /// Convert a log file to a PX4 ULog file
+    ///
+    /// One ULog message `log_<index>` per format (`log_<index>_<n>` after a redefinition),
+    /// with a `timestamp` (µs) and the format's columns as fields. Byte arrays are not
+    /// converted.
     ToUlog {
         /// Binary log file.
         #[arg(value_name = "FILE")]
@@ -85,7 +96,7 @@ impl Outcome {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let outcome = match cli.command {
-        Command::Info { files } => info::run(&files),
+        Command::Info { files, gap_s } => info::run(&files, gap_s),
         Command::ToCsv { inputs, out_dir } => to_csv::run(&inputs, out_dir.as_deref()),
         Command::ToUlog { file, output } => to_ulog::run(&file, &output),
     };

@@ -159,6 +159,7 @@ fn info_summarises_a_file() {
     2: data blocks 0, byte arrays 2
   time span: 1.000000000 to 3.000000000 (2.000000000 s)
   largest time step: 0.999999994 s, to the record at offset 131
+  gaps: none
   Begin/End pairs:
     begin 1.000000000 (offset 0) to end 3.000000000 (offset 131): 2.000000000 s
   closed cleanly: yes
@@ -167,6 +168,18 @@ fn info_summarises_a_file() {
         log.display()
     );
     assert_eq!(String::from_utf8_lossy(&output.stdout), expected);
+    // The two byte arrays of format 2 are 1 ns apart.
+    let output = skyframe_log(&[
+        "info",
+        "--gap-s",
+        "0.0000000005",
+        log.to_str().expect("utf-8"),
+    ]);
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert!(
+        stdout.contains("  gaps: 1\n    format 2: 0.000000001 s between offsets 103 and 118\n"),
+        "{stdout}"
+    );
 }
 
 #[test]
