@@ -18,7 +18,7 @@ use core::fmt::Write;
 
 use heapless::String;
 
-use super::format::Format;
+use super::format::{FieldType, Format};
 use super::record::{DataBlockWriter, EncodeError};
 use crate::executive::FrameRecord;
 use crate::schedule::TaskSlot;
@@ -138,4 +138,91 @@ pub fn encode_frame_record(
         writer = writer.u32(exec_ns);
     }
     writer.finish()
+}
+
+/// The task names of a frame log, from its Format Comment; `None` when the columns are not a
+/// frame log's (the fixed columns first, then only `exec_ns_<task>` columns).
+pub fn frame_log_task_names(columns: &str) -> Option<impl Iterator<Item = &str>> {
+    let rest = columns.strip_prefix(FRAME_FIXED_COLUMNS)?;
+    if !(rest.is_empty() || rest.starts_with(',')) {
+        return None;
+    }
+    let names = rest.split(',').skip(1);
+    if names.clone().any(|c| !c.starts_with(EXEC_COLUMN_PREFIX)) {
+        return None;
+    }
+    Some(names.filter_map(|c| c.strip_prefix(EXEC_COLUMN_PREFIX)))
+}
+
+/// Decodes a Data Block of a frame log back into a [`FrameRecord`] (for the frame-overrun
+/// report tool); `None` when the format is not a frame log's or `data` does not fit it.
+/// Tasks past [`MAX_TASKS`] cannot be in a frame log.
+pub fn decode_frame_record(format: &Format, data: &[u8]) -> Option<FrameRecord> {
+    const FIXED: [FieldType; FRAME_FIXED_FIELDS] = [
+        FieldType::U64,
+        FieldType::U64,
+        FieldType::U32,
+        FieldType::U32,
+        FieldType::U32,
+        FieldType::U32,
+        FieldType::U32,
+        FieldType::U32,
+        FieldType::U32,
+        FieldType::U32,
+        FieldType::U32,
+        FieldType::U8,
+    ];
+    let fields = format.fields();
+    let (fixed, exec) = fields.split_at_checked(FRAME_FIXED_FIELDS)?;
+    let layout_ok = fixed.iter().map(|f| f.ty).eq(FIXED)
+        && exec.len() <= MAX_TASKS
+        && exec.iter().all(|f| f.ty == FieldType::U32)
+        && data.len() == format.data_len();
+    if !layout_ok {
+        return None;
+    }
+    let mut cursor = Cursor { data, offset: 0 };
+    let mut record = FrameRecord::empty();
+    record.frame = cursor.u64()?;
+    record.release_ns = cursor.u64()?;
+    record.start_latency_ns = cursor.u32()?;
+    record.work_ns = cursor.u32()?;
+    record.overhead_ns = cursor.u32()?;
+    record.missed_before = cursor.u32()?;
+    record.ran = cursor.u32()?;
+    record.over_budget = cursor.u32()?;
+    record.over_frame = cursor.u32()?;
+    record.skipped = cursor.u32()?;
+    record.reset = cursor.u32()?;
+    record.flags = cursor.u8()?;
+    for exec_ns in record.exec_ns.iter_mut().take(exec.len()) {
+        *exec_ns = cursor.u32()?;
+    }
+    Some(record)
+}
+
+/// Reads little-endian fields in order.
+struct Cursor<'a> {
+    data: &'a [u8],
+    offset: usize,
+}
+
+impl Cursor<'_> {
+    fn take<const N: usize>(&mut self) -> Option<[u8; N]> {
+        let bytes = self.data.get(self.offset..)?.first_chunk::<N>()?;
+        self.offset += N;
+        Some(*bytes)
+    }
+
+    fn u64(&mut self) -> Option<u64> {
+        self.take().map(u64::from_le_bytes)
+    }
+
+    fn u32(&mut self) -> Option<u32> {
+        self.take().map(u32::from_le_bytes)
+    }
+
+    fn u8(&mut self) -> Option<u8> {
+        self.take().map(u8::from_le_bytes)
+    }
 }

@@ -17,7 +17,9 @@ pub mod reader;
 pub mod record;
 
 pub use format::{Conversion, Field, FieldType, Flags, Format, FormatError, MAX_FIELDS};
-pub use frame_log::{FrameLogFormat, encode_frame_record};
+pub use frame_log::{
+    FrameLogFormat, decode_frame_record, encode_frame_record, frame_log_task_names,
+};
 pub use printf::{
     ByteWrite, RenderError, Value, render_byte_array, render_byte_array_bytes, render_data_block,
     render_data_block_bytes, render_field, render_field_bytes,

@@ -339,22 +339,41 @@ fn frame_log_round_trip() {
     len += encode_end_data(&mut buf[len..], 1).expect("ends");
     let mut reader = std::boxed::Box::new(LogReader::new());
     let mut text = String::new();
-    read_slice(&mut reader, &buf[..len], |event| {
-        if let Event::Record {
+    let mut decoded = None;
+    let mut names = Vec::new();
+    read_slice(&mut reader, &buf[..len], |event| match event {
+        Event::Record {
             record: Record::DataBlock {
                 format, data, time, ..
             },
             ..
-        } = event
-        {
+        } => {
             text = std::format!("{time},");
             render_data_block(&mut text, log.format_text(), format, data).expect("renders");
+            decoded = decode_frame_record(format, data);
         }
+        Event::Record {
+            record: Record::FormatComment { text, .. },
+            ..
+        } => {
+            let columns = std::str::from_utf8(text).expect("utf-8");
+            names = frame_log_task_names(columns)
+                .expect("a frame log")
+                .map(String::from)
+                .collect();
+        }
+        _ => {}
     });
     assert_eq!(
         text,
         "0.420001000,42,420000000,0,900,0,0,3,0,0,0,0,3,300,500"
     );
+    assert_eq!(decoded, Some(record));
+    assert_eq!(names, ["imu", "gps"]);
+    assert!(frame_log_task_names("frame,release_ns").is_none());
+    assert!(frame_log_task_names(&std::format!("{},x", log.columns())).is_none());
+    let other = Format::parse("%llu,%llu").expect("valid");
+    assert_eq!(decode_frame_record(&other, &[0; 16]), None);
 }
 
 #[test]
