@@ -240,3 +240,30 @@ fn random_bytes_never_panic() {
         );
     }
 }
+
+#[test]
+fn redefinitions_print_new_header_lines_only_when_the_format_changes() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let log = dir.path().join("redef.bin");
+    #[rustfmt::skip]
+    let bytes: &[u8] = &[
+        0xFD, 1, 2, 0,  b'%', b'd',
+        0xFC, 1, 1, 0,  b'a',
+        0xDB, 1, 4, 0,  1, 0, 0, 0,  0, 0, 0, 0,  1, 0, 0, 0,
+        // The same definition again (a task restarting): no new header.
+        0xFD, 1, 2, 0,  b'%', b'd',
+        0xDB, 1, 4, 0,  2, 0, 0, 0,  0, 0, 0, 0,  2, 0, 0, 0,
+        // A new layout for index 1, without a comment of its own: the old one stays.
+        0xFD, 1, 4, 0,  b'%', b'h', b'h', b'x',
+        0xDB, 1, 1, 0,  3, 0, 0, 0,  0, 0, 0, 0,  0xAB,
+        0xED, 0, 0, 0,  4, 0, 0, 0,  0, 0, 0, 0,
+    ];
+    std::fs::write(&log, bytes).expect("write");
+    let output = skyframe_log(&["to-csv", log.to_str().expect("utf-8")]);
+    assert_eq!(output.status.code(), Some(0), "stderr: {}", stderr(&output));
+    assert_eq!(
+        read(&dir.path().join("redef.1.csv")),
+        "% format 1: %d\n% time,a\n1.000000000,1\n2.000000000,2\n\
+         % format 1: %hhx\n% time,a\n3.000000000,ab\n"
+    );
+}
