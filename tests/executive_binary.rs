@@ -5,8 +5,15 @@ use nix::sys::signal::{Signal, kill};
 use nix::unistd::Pid;
 use serde_json::Value;
 use skyframe_tests::{scratch, skyframe, workspace};
-use std::process::Stdio;
+use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
+
+/// `skyframe sim` logging into a fresh scratch directory (never the caller's `flights/`).
+fn sim(test: &str) -> Command {
+    let mut cmd = skyframe();
+    cmd.arg("sim").arg("--log-dir").arg(scratch(test));
+    cmd
+}
 
 fn json(stdout: &[u8]) -> Value {
     serde_json::from_slice(stdout)
@@ -88,9 +95,8 @@ fn check_schedule_exits_1_on_infeasible_and_2_on_unreadable_files() {
 fn injected_overruns_are_detected_on_the_real_clock_and_policies_apply() {
     // imu (budget 300 us, policy reset) gets 3 ms extra in frames 10..20; estimator (log)
     // 12 ms extra in frames 50..52, which runs frames 50 and 51 into the next frame.
-    let out = skyframe()
+    let out = sim("injected_overruns_are_detected_on_the_real_clock_and_policies_apply")
         .args([
-            "sim",
             "--duration",
             "1",
             "--json",
@@ -136,9 +142,8 @@ fn injected_overruns_are_detected_on_the_real_clock_and_policies_apply() {
 fn a_long_stall_misses_whole_frames_and_counts_their_releases() {
     // 35 ms in imu's step of frame 30 (due at 300 ms): it ends near 335 ms, so frames 31
     // (310-320 ms) and 32 (320-330 ms) pass whole and frame 33 starts about 5 ms late.
-    let out = skyframe()
+    let out = sim("a_long_stall_misses_whole_frames_and_counts_their_releases")
         .args([
-            "sim",
             "--duration",
             "1",
             "--json",
@@ -165,9 +170,8 @@ fn a_long_stall_misses_whole_frames_and_counts_their_releases() {
 }
 
 fn stops_cleanly_on(signal: Signal) {
-    let child = skyframe()
+    let child = sim("stops_cleanly_on")
         .args([
-            "sim",
             "--duration",
             "60",
             "--json",
@@ -216,9 +220,8 @@ fn watchdog_counts_a_task_whose_releases_are_all_skipped() {
     // logging (policy skip, every 10 ms) overruns on every release in frames 20..60: every
     // other release is skipped, so it still completes steps and stays alive. The health task
     // runs every 100 ms and sees all tasks alive.
-    let out = skyframe()
+    let out = sim("watchdog_counts_a_task_whose_releases_are_all_skipped")
         .args([
-            "sim",
             "--duration",
             "1",
             "--json",
@@ -254,7 +257,16 @@ fn real_time_refusals_are_reported_once_and_the_run_goes_on() {
             "--inh-caps=-sys_nice,-ipc_lock",
         ])
         .arg(skyframe_tests::binary("skyframe-linux", "skyframe"))
-        .args(["sim", "--duration", "0.3", "--json", "--cpu", "4096"])
+        .args([
+            "sim",
+            "--duration",
+            "0.3",
+            "--json",
+            "--cpu",
+            "4096",
+            "--log-dir",
+        ])
+        .arg(scratch("refusals"))
         .output();
     let Ok(out) = out else {
         panic!("setpriv (util-linux) is needed for this test");
@@ -271,9 +283,8 @@ fn real_time_refusals_are_reported_once_and_the_run_goes_on() {
 
 #[test]
 fn pinning_to_an_existing_cpu_is_granted() {
-    let out = skyframe()
+    let out = sim("pinning_to_an_existing_cpu_is_granted")
         .args([
-            "sim",
             "--duration",
             "0.2",
             "--json",
@@ -293,9 +304,8 @@ fn pinning_to_an_existing_cpu_is_granted() {
 
 #[test]
 fn programmed_duration_ends_the_run() {
-    let out = skyframe()
+    let out = sim("programmed_duration_ends_the_run")
         .args([
-            "sim",
             "--duration",
             "0.5",
             "--json",
@@ -355,8 +365,8 @@ fn bench_prints_both_latency_distributions_overhead_and_ratios() {
 
 #[test]
 fn bad_arguments_exit_2_with_one_line() {
-    let out = skyframe()
-        .args(["sim", "--inject-overrun", "camera:1@1..2"])
+    let out = sim("bench_prints_both_latency_distributions_overhead_and_ratios")
+        .args(["--inject-overrun", "camera:1@1..2"])
         .output()
         .expect("runs");
     assert_eq!(out.status.code(), Some(2));
@@ -398,4 +408,49 @@ fn bench_compares_against_cyclictest_in_the_same_run() {
             "{b}"
         );
     }
+}
+
+#[test]
+fn a_run_logs_its_timing_records_readably_for_skyframe_log() {
+    let dir = scratch("timing-log");
+    let out = skyframe()
+        .args([
+            "sim",
+            "--duration",
+            "0.5",
+            "--json",
+            "--priority",
+            "0",
+            "--no-mlockall",
+            "--log-dir",
+        ])
+        .arg(&dir)
+        .output()
+        .expect("runs");
+    assert!(out.status.success());
+    let s = json(&out.stdout);
+    let files = s["log_files"].as_array().expect("log files");
+    assert_eq!(files.len(), 1, "{s}");
+    let file = files[0].as_str().expect("path");
+    assert!(
+        file.starts_with(dir.to_str().expect("utf-8")) && file.ends_with("/executive.bin"),
+        "{file}"
+    );
+    assert_eq!(
+        s["log_streams"][0]["records_written"], 54,
+        "definition, comment, begin, 50 frames, end"
+    );
+    let info = Command::new(skyframe_tests::binary("skyframe-log", "skyframe-log"))
+        .args(["info", file])
+        .output()
+        .expect("skyframe-log runs");
+    let text = String::from_utf8_lossy(&info.stdout);
+    assert!(
+        info.status.success(),
+        "{text}{}",
+        String::from_utf8_lossy(&info.stderr)
+    );
+    assert!(text.contains("1: data blocks 50"), "{text}");
+    assert!(text.contains("closed cleanly: yes"), "{text}");
+    assert!(text.contains("exec_ns_imu"), "{text}");
 }

@@ -5,15 +5,12 @@
 
 use crate::bench;
 use crate::check_schedule::check_file;
-use crate::host::{RunOptions, TimerCheckConfig, run_executive, stop_on_signals};
-use crate::idle::{IdleTask, idle_tasks};
+use crate::flight::{fly_idle, render_flight};
+use crate::host::{RunOptions, TimerCheckConfig, stop_on_signals};
 use crate::platform::{Platform, RtConfig};
-use crate::summary::{SummaryReport, render_summary};
 use clap::{Args, Parser, Subcommand};
-use skyframe_core::comm::LatestSlot;
-use skyframe_core::executive::{FaultPlan, OverrunInjection, Task};
+use skyframe_core::executive::{FaultPlan, OverrunInjection};
 use skyframe_core::schedule::{FrameTable, SHIPPED};
-use skyframe_core::tasks::health::HealthTask;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::Arc;
@@ -92,6 +89,10 @@ pub struct SimArgs {
     /// Print the end-of-run summary as one JSON object.
     #[arg(long)]
     pub json: bool,
+    /// Where flights are logged: each run writes into a new subdirectory named by its start
+    /// time (UTC).
+    #[arg(long, default_value = "flights")]
+    pub log_dir: PathBuf,
     /// Milliseconds of timer measurement before the first frame (0 skips the check).
     #[arg(long, default_value_t = 200)]
     pub timer_check_ms: u64,
@@ -244,14 +245,10 @@ fn run<P: Platform>(platform: &P, command: Command) -> Result<ExitCode, String> 
                  executive with idle tasks for {} s",
                 args.duration
             );
-            let watchdog_out = LatestSlot::new();
-            let mut watchdog = HealthTask::new(&watchdog_out);
-            let mut idle = idle_tasks(SHIPPED.tasks.len());
-            let mut tasks = with_watchdog(&SHIPPED, &mut idle, &mut watchdog);
-            let summary = run_executive(
+            let report = fly_idle(
                 platform,
                 &SHIPPED,
-                &mut tasks,
+                &args.log_dir,
                 RunOptions {
                     faults,
                     realtime: args.realtime.config(),
@@ -261,48 +258,16 @@ fn run<P: Platform>(platform: &P, command: Command) -> Result<ExitCode, String> 
                     },
                     ..RunOptions::new(Some(Duration::from_secs_f64(args.duration)), &stop)
                 },
-                |_| {},
-            )
-            .map_err(|e| e.to_string())?;
-            drop(tasks);
-            let mut report = SummaryReport::from(&summary);
-            report.set_watchdog(watchdog.report());
+            )?;
             if args.json {
                 let json = serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?;
                 println!("{json}");
             } else {
-                print!("{}", render_summary(&summary));
-                let misses: Vec<String> = report
-                    .tasks
-                    .iter()
-                    .map(|t| format!("{} {}", t.name, t.watchdog_misses))
-                    .collect();
-                println!(
-                    "watchdog: {} checks; misses per task: {}",
-                    report.watchdog_checks,
-                    misses.join(", ")
-                );
+                print!("{}", render_flight(&report));
             }
             Ok(ExitCode::SUCCESS)
         }
     }
-}
-
-/// Idle tasks in every slot but `health`, which gets the real watchdog.
-fn with_watchdog<'a>(
-    table: &FrameTable,
-    idle: &'a mut [IdleTask],
-    watchdog: &'a mut HealthTask<'_>,
-) -> Vec<&'a mut dyn Task> {
-    let health = table.task_index("health");
-    let mut watchdog = Some(watchdog as &mut dyn Task);
-    idle.iter_mut()
-        .enumerate()
-        .map(|(i, idle)| match watchdog.take_if(|_| Some(i) == health) {
-            Some(w) => w,
-            None => idle as &mut dyn Task,
-        })
-        .collect()
 }
 
 #[cfg(test)]
