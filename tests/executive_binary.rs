@@ -429,19 +429,34 @@ fn a_run_logs_its_timing_records_readably_for_skyframe_log() {
         .expect("runs");
     assert!(out.status.success());
     let s = json(&out.stdout);
-    let files = s["log_files"].as_array().expect("log files");
-    assert_eq!(files.len(), 1, "{s}");
-    let file = files[0].as_str().expect("path");
-    assert!(
-        file.starts_with(dir.to_str().expect("utf-8")) && file.ends_with("/executive.bin"),
-        "{file}"
-    );
+    let files: Vec<&str> = s["log_files"]
+        .as_array()
+        .expect("log files")
+        .iter()
+        .filter_map(Value::as_str)
+        .collect();
+    assert_eq!(files.len(), 2, "{s}");
+    let file = files
+        .iter()
+        .find(|f| f.ends_with("/executive.bin"))
+        .expect("executive log");
+    assert!(file.starts_with(dir.to_str().expect("utf-8")), "{file}");
     assert_eq!(
         s["log_streams"][0]["records_written"], 54,
         "definition, comment, begin, 50 frames, end"
     );
+    // health.bin: a snapshot of the 8 tasks at 0 s and at shutdown, between its begin/end.
+    assert_eq!(s["log_streams"][1]["name"], "health");
+    assert_eq!(s["log_streams"][1]["records_written"], 2 + 1 + 16 + 1);
+    assert!(
+        s["tasks"]
+            .as_array()
+            .expect("tasks")
+            .iter()
+            .all(|t| t["log_dropped"] == 0)
+    );
     let info = Command::new(skyframe_tests::binary("skyframe-log", "skyframe-log"))
-        .args(["info", file])
+        .args(["info", *file])
         .output()
         .expect("skyframe-log runs");
     let text = String::from_utf8_lossy(&info.stdout);

@@ -13,12 +13,17 @@ use skyframe_core::comm::LatestSlot;
 use skyframe_core::executive::Task;
 use skyframe_core::schedule::FrameTable;
 use skyframe_core::tasks::health::HealthTask;
+use skyframe_core::tasks::logging::LoggingTask;
 use std::path::PathBuf;
 use std::sync::atomic::Ordering;
 use std::time::{SystemTime, UNIX_EPOCH};
 
-/// Ring of the executive's timing stream: ~100 records of a 100 Hz frame ≈ 1 s of backlog.
+/// Ring of the executive's timing stream: ~100 B a frame, so several seconds of backlog.
 const TIMING_RING_BYTES: usize = 256 * 1024;
+/// Ring of the health snapshots: one snapshot of every task is ~1.5 kB.
+const HEALTH_RING_BYTES: usize = 64 * 1024;
+/// Health snapshots once a second.
+const HEALTH_SNAPSHOT_NS: u64 = 1_000_000_000;
 
 /// What happened to one log stream.
 #[derive(Debug, Serialize)]
@@ -39,8 +44,9 @@ pub struct FlightReport {
     pub log_streams: Vec<StreamReport>,
 }
 
-/// Flies `table` with the watchdog in the `health` slot and idle tasks elsewhere, logging
-/// the executive's timing records under `log_dir/<start time>/`.
+/// Flies `table` with the watchdog in the `health` slot, health snapshots in the `logging`
+/// slot and idle tasks elsewhere, logging the executive's timing records and the snapshots
+/// under `log_dir/<start time>/`.
 pub fn fly_idle<P: Platform>(
     platform: &P,
     table: &'static FrameTable,
@@ -56,7 +62,11 @@ pub fn fly_idle<P: Platform>(
     })?;
     let mut writer = LogWriter::new(WriterConfig::new(flight_dir.clone()));
     let timing_stream = writer.stream("executive", TIMING_RING_BYTES);
-    let timing_status = std::sync::Arc::clone(&timing_stream.status);
+    let health_stream = writer.stream("health", HEALTH_RING_BYTES);
+    let statuses = [
+        ("executive", std::sync::Arc::clone(&timing_stream.status)),
+        ("health", std::sync::Arc::clone(&health_stream.status)),
+    ];
     let writer = writer.start().map_err(|e| {
         format!(
             "cannot start the log writer in {}: {e}",
@@ -76,8 +86,17 @@ pub fn fly_idle<P: Platform>(
 
     let watchdog_out = LatestSlot::new();
     let mut watchdog = HealthTask::new(&watchdog_out);
+    let mut logging = LoggingTask::new(health_stream, HEALTH_SNAPSHOT_NS);
     let mut idle = idle_tasks(table.tasks.len());
-    let mut tasks = with_watchdog(table, &mut idle, &mut watchdog);
+    let mut tasks = assemble(
+        table,
+        &mut idle,
+        vec![("health", &mut watchdog), ("logging", &mut logging)],
+    );
+    let options = RunOptions {
+        log_time_origin_ns: time_origin_ns,
+        ..options
+    };
     let result = run_executive(platform, table, &mut tasks, options, |r| timing.record(r));
     drop(tasks);
     timing.finish();
@@ -90,30 +109,33 @@ pub fn fly_idle<P: Platform>(
         summary: report,
         flight_dir,
         log_files,
-        log_streams: vec![StreamReport {
-            name: "executive".into(),
-            records_written: timing_status.records_written.load(Ordering::Relaxed),
-            records_dropped: timing_status.records_dropped.load(Ordering::Relaxed),
-            records_lost: timing_status.records_lost.load(Ordering::Relaxed),
-            failed: timing_status.failed.load(Ordering::Relaxed),
-        }],
+        log_streams: statuses
+            .iter()
+            .map(|(name, status)| StreamReport {
+                name: (*name).into(),
+                records_written: status.records_written.load(Ordering::Relaxed),
+                records_dropped: status.records_dropped.load(Ordering::Relaxed),
+                records_lost: status.records_lost.load(Ordering::Relaxed),
+                failed: status.failed.load(Ordering::Relaxed),
+            })
+            .collect(),
     })
 }
 
-/// Idle tasks in every slot but `health`, which gets the real watchdog.
-fn with_watchdog<'a>(
+/// One task per slot of `table`: the named real tasks where given, idle ones elsewhere.
+fn assemble<'a>(
     table: &FrameTable,
     idle: &'a mut [IdleTask],
-    watchdog: &'a mut HealthTask<'_>,
+    mut real: Vec<(&'static str, &'a mut dyn Task)>,
 ) -> Vec<&'a mut dyn Task> {
-    let health = table.task_index("health");
-    let mut watchdog = Some(watchdog as &mut dyn Task);
     idle.iter_mut()
-        .enumerate()
-        .map(|(i, idle)| match watchdog.take_if(|_| Some(i) == health) {
-            Some(w) => w,
-            None => idle as &mut dyn Task,
-        })
+        .zip(table.tasks)
+        .map(
+            |(idle, slot)| match real.iter().position(|(name, _)| *name == slot.name) {
+                Some(found) => real.swap_remove(found).1,
+                None => idle as &mut dyn Task,
+            },
+        )
         .collect()
 }
 

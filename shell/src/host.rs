@@ -86,6 +86,8 @@ pub struct RunOptions<'a> {
     pub realtime: RtConfig,
     /// Set by signal handlers or a stop command; checked between frames.
     pub stop: &'a AtomicBool,
+    /// Log TIME of the executive's clock zero (wall clock on a vehicle, 0 in simulation).
+    pub log_time_origin_ns: u64,
 }
 
 impl<'a> RunOptions<'a> {
@@ -97,6 +99,7 @@ impl<'a> RunOptions<'a> {
             faults: FaultPlan::new(),
             realtime: RtConfig::default(),
             stop,
+            log_time_origin_ns: 0,
         }
     }
 }
@@ -139,6 +142,8 @@ pub struct RunSummary {
     pub elapsed_ns: u64,
     pub frames: FrameStats,
     pub tasks: Vec<TaskHealth>,
+    /// Per task: log records its ring could not take.
+    pub log_dropped: Vec<u32>,
 }
 
 /// Runs `tasks` (one per slot of `table`, in table order) until the duration elapses or
@@ -197,12 +202,13 @@ pub fn run_executive<P: Platform>(
                 stop_reason,
                 elapsed_ns,
                 frames,
-                tasks: health,
+                log_dropped: health.iter().map(|(_, d)| *d).collect(),
+                tasks: health.into_iter().map(|(h, _)| h).collect(),
             })
     })
 }
 
-type Flown = (StopReason, u64, FrameStats, Vec<TaskHealth>);
+type Flown = (StopReason, u64, FrameStats, Vec<(TaskHealth, u32)>);
 
 fn fly<T: FrameTimer>(
     table: &'static FrameTable,
@@ -213,6 +219,8 @@ fn fly<T: FrameTimer>(
 ) -> Result<Flown, StartError> {
     let mut executive = Executive::new(table, timer);
     executive.set_faults(options.faults.clone());
+    // The timer's clock starts now-ish; the caller measured the wall clock just before.
+    executive.set_log_time_origin(options.log_time_origin_ns);
     // Frame 0 one minor frame from now: init has had its time, the first frame starts clean.
     let first_release = timer.now_ns() + table.minor_frame_ns;
     executive.start(tasks, first_release)?;
@@ -235,7 +243,7 @@ fn fly<T: FrameTimer>(
     executive.shutdown(tasks);
     let health = executive.health();
     let tasks = (0..health.task_count())
-        .filter_map(|i| health.task(i).copied())
+        .filter_map(|i| health.task(i).copied().map(|h| (h, health.log_dropped(i))))
         .collect();
     Ok((reason, elapsed, health.frames, tasks))
 }

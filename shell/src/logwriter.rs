@@ -96,6 +96,12 @@ impl LogStream {
     }
 }
 
+impl skyframe_core::comm::RecordSink for LogStream {
+    fn push_record(&mut self, record: &[u8]) -> bool {
+        LogStream::push_record(self, record)
+    }
+}
+
 /// A stream as the writer thread sees it.
 struct Drain {
     name: String,

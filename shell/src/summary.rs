@@ -29,6 +29,8 @@ pub struct TaskReport {
     pub exec_histogram: Vec<u32>,
     /// Watchdog checks at which the task had been released but had not completed a step.
     pub watchdog_misses: u32,
+    /// Log records the task's ring could not take.
+    pub log_dropped: u32,
 }
 
 #[derive(Debug, Serialize)]
@@ -80,7 +82,8 @@ impl From<&RunSummary> for SummaryReport {
                 .tasks
                 .iter()
                 .zip(&s.tasks)
-                .map(|(slot, h)| TaskReport {
+                .zip(s.log_dropped.iter().copied().chain(std::iter::repeat(0)))
+                .map(|((slot, h), log_dropped)| TaskReport {
                     name: slot.name,
                     budget_us: slot.budget_ns / 1000,
                     initialised: h.initialised,
@@ -100,6 +103,7 @@ impl From<&RunSummary> for SummaryReport {
                     last_fault: h.last_fault,
                     exec_histogram: h.exec.histogram.to_vec(),
                     watchdog_misses: 0,
+                    log_dropped,
                 })
                 .collect(),
         }

@@ -121,6 +121,8 @@ pub struct FrameStats {
 pub struct HealthBoard {
     tasks: [TaskHealth; MAX_TASKS],
     alive: [Cell<bool>; MAX_TASKS],
+    /// Log records each task could not hand to its log ring (full).
+    log_dropped: [Cell<u32>; MAX_TASKS],
     count: usize,
     pub frames: FrameStats,
 }
@@ -130,6 +132,7 @@ impl HealthBoard {
         Self {
             tasks: [TaskHealth::default(); MAX_TASKS],
             alive: [const { Cell::new(false) }; MAX_TASKS],
+            log_dropped: [const { Cell::new(0) }; MAX_TASKS],
             count: count.min(MAX_TASKS),
             frames: FrameStats::default(),
         }
@@ -156,6 +159,17 @@ impl HealthBoard {
     /// The watchdog's check: was the task alive since the last check? Clears the flag.
     pub fn take_alive(&self, index: usize) -> bool {
         self.alive.get(index).is_some_and(|a| a.replace(false))
+    }
+
+    /// Counts a log record task `index` had to drop (its ring was full).
+    pub fn note_log_drop(&self, index: usize) {
+        if let Some(c) = self.log_dropped.get(index) {
+            c.set(c.get().saturating_add(1));
+        }
+    }
+
+    pub fn log_dropped(&self, index: usize) -> u32 {
+        self.log_dropped.get(index).map_or(0, Cell::get)
     }
 
     pub(crate) fn mark_alive(&self, index: usize) {

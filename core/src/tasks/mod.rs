@@ -3,3 +3,5 @@
 //! until then the shell fills their slots with idle tasks.
 
 pub mod health;
+pub mod logging;
+pub mod task_log;
