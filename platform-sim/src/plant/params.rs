@@ -100,11 +100,18 @@ pub struct GroundParams {
 
 impl GroundParams {
     pub fn tricycle() -> Self {
-        // Static deflection ≈ 1.5 cm under 108 N spread over three wheels; damping ratio ≈ 0.7.
-        let wheel = |x: f64, y: f64, steerable: bool, brake: f64| ContactPoint {
+        // Each wheel's spring is sized to its share of the static load, so that all three
+        // compress the same 1.5 cm and the airplane sits level; damping ratio ≈ 0.7.
+        const NOSE_X_M: f64 = 0.60;
+        const MAIN_X_M: f64 = -0.12;
+        const TOTAL_STIFFNESS_N_PER_M: f64 = 7_200.0;
+        const TOTAL_DAMPING_NS_PER_M: f64 = 390.0;
+        let nose_share = -MAIN_X_M / (NOSE_X_M - MAIN_X_M);
+        let main_share = (1.0 - nose_share) / 2.0;
+        let wheel = |x: f64, y: f64, share: f64, steerable: bool, brake: f64| ContactPoint {
             position_body_m: [x, y, 0.30],
-            stiffness_n_per_m: 2_500.0,
-            damping_ns_per_m: 130.0,
+            stiffness_n_per_m: share * TOTAL_STIFFNESS_N_PER_M,
+            damping_ns_per_m: share * TOTAL_DAMPING_NS_PER_M,
             rolling_friction: 0.03,
             side_friction: 0.8,
             brake_friction: brake,
@@ -123,9 +130,9 @@ impl GroundParams {
         };
         Self {
             contacts: vec![
-                wheel(0.60, 0.0, true, 0.0),
-                wheel(-0.12, -0.45, false, 0.5),
-                wheel(-0.12, 0.45, false, 0.5),
+                wheel(NOSE_X_M, 0.0, nose_share, true, 0.0),
+                wheel(MAIN_X_M, -0.45, main_share, false, 0.5),
+                wheel(MAIN_X_M, 0.45, main_share, false, 0.5),
                 skid(-0.10, -1.45, 0.0),
                 skid(-0.10, 1.45, 0.0),
                 skid(-1.20, 0.0, 0.05),
