@@ -126,6 +126,9 @@ pub struct Truth {
     pub height_above_ground_m: f64,
 }
 
+/// The longest RK4 step the plant takes, whatever `PlantConfig::max_step_s` asks for.
+pub const MAX_STEP_S: f64 = 0.01;
+
 /// Everything the plant can be configured with.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PlantConfig {
@@ -259,7 +262,8 @@ impl Plant {
         if dt_ns == 0 {
             return;
         }
-        let max_ns = ((self.config.max_step_s * 1e9).round() as u64).max(1);
+        let max_step_s = self.config.max_step_s.min(MAX_STEP_S);
+        let max_ns = ((max_step_s * 1e9).round() as u64).max(1);
         let substeps = dt_ns.div_ceil(max_ns);
         let u = self.control_inputs();
         let effort = commands.aileron.abs().min(1.0)

@@ -117,12 +117,15 @@ impl GroundParams {
             brake_friction: brake,
             steerable,
         };
-        // Wing tips and tail: stiff, high friction skids, touching only in a crash or a hard
-        // wing-low landing; they keep the airframe out of the ground whatever happens.
+        // Wing tips, tail and nose: high-friction skids, touching only in a crash, a tail
+        // strike or a hard wing-low landing; they keep the airframe out of the ground whatever
+        // happens. No stiffer than this: a wing-tip spring acts on the small roll inertia
+        // through a 1.45 m arm, and stiffer springs or dampers make RK4 at the coarsest
+        // allowed step (10 ms) unstable in a crash.
         let skid = |x: f64, y: f64, z: f64| ContactPoint {
             position_body_m: [x, y, z],
-            stiffness_n_per_m: 20_000.0,
-            damping_ns_per_m: 600.0,
+            stiffness_n_per_m: 8_000.0,
+            damping_ns_per_m: 200.0,
             rolling_friction: 0.6,
             side_friction: 0.6,
             brake_friction: 0.0,

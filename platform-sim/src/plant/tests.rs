@@ -472,6 +472,7 @@ mod robustness {
             from_air in any::<bool>(),
             low in any::<bool>(),
             seed in any::<u64>(),
+            coarse in any::<bool>(),
         ) {
             let params = AircraftParams::aerosonde();
             let initial = if from_air {
@@ -482,7 +483,10 @@ mod robustness {
             } else {
                 InitialState::on_runway(&params, 1.0)
             };
-            let mut plant = Plant::with_config(gusty_config(), initial, seed);
+            // Both the default 1 ms step and the coarsest step the plant allows.
+            let max_step_s = if coarse { MAX_STEP_S } else { 0.001 };
+            let cfg = PlantConfig { max_step_s, ..gusty_config() };
+            let mut plant = Plant::with_config(cfg, initial, seed);
             for cmd in &commands {
                 for _ in 0..50 {
                     plant.step(DT, cmd);

@@ -64,6 +64,7 @@ impl WindConfig {
 /// written for an airplane moving through frozen turbulence, and at zero airspeed its
 /// bandwidth and gain both vanish, which would make a parked airplane feel no gusts at all.
 pub const DRYDEN_MIN_AIRSPEED_MPS: f64 = 5.0;
+pub const DRYDEN_MAX_AIRSPEED_MPS: f64 = 100.0;
 
 /// The Dryden filter states.
 #[derive(Debug, Clone)]
@@ -107,7 +108,9 @@ impl WindModel {
         let Some(d) = self.config.turbulence else {
             return;
         };
-        let va = airspeed_mps.max(DRYDEN_MIN_AIRSPEED_MPS);
+        // Capped too: the semi-implicit filter step needs Va/L·dt well below 1, and no
+        // Aerosonde flies at 100 m/s except in a dive that has already gone wrong.
+        let va = airspeed_mps.clamp(DRYDEN_MIN_AIRSPEED_MPS, DRYDEN_MAX_AIRSPEED_MPS);
 
         // u: first order, stepped exactly as a Gauss–Markov process of variance σ_u².
         let phi = (-va / d.length_u_m * dt_s).exp();
