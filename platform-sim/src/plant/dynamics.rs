@@ -12,7 +12,7 @@ use super::math::{
     Quat, Vec3, add, cross, mat_t_vec, mat_vec, norm, quat_derivative, quat_normalize,
     quat_to_rotation, scale, sub,
 };
-use super::params::{AircraftParams, GRAVITY_MPS2};
+use super::params::{AircraftParams, ContactKind, GRAVITY_MPS2};
 
 /// The integrated state.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -148,8 +148,20 @@ pub struct ForcesAndMoments {
     pub propulsion: PropulsionOutput,
     /// Sum of ground normal forces (N); > 0 means some point touches the ground.
     pub ground_normal_force_n: f64,
-    /// Whether a landing-gear wheel (not only a skid) touches the ground.
+    /// Whether a landing-gear wheel touches the ground.
     pub wheels_on_ground: bool,
+    /// Whether another part of the airframe (wing tip, tail, nose) touches the ground.
+    pub airframe_on_ground: bool,
+}
+
+/// What the ground does to the airplane.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+struct GroundReaction {
+    force_body_n: Vec3,
+    moment_body_nm: Vec3,
+    normal_force_n: f64,
+    wheels: bool,
+    airframe: bool,
 }
 
 /// Airspeed and the angles of attack and sideslip (Beard & McLain eq. 2.8 and 4.x).
@@ -298,18 +310,10 @@ fn aerodynamics(
 }
 
 /// Ground reaction at every contact point below the ground plane (NED z = 0, flat).
-/// Returns (force body, moment body, total normal force, any wheel touching).
-fn ground_contact(
-    p: &AircraftParams,
-    state: &RigidBodyState,
-    u: &ControlInputs,
-) -> (Vec3, Vec3, f64, bool) {
+fn ground_contact(p: &AircraftParams, state: &RigidBodyState, u: &ControlInputs) -> GroundReaction {
     let g = &p.ground;
     let r_nb = quat_to_rotation(state.attitude);
-    let mut force = [0.0; 3];
-    let mut moment = [0.0; 3];
-    let mut normal_total = 0.0;
-    let mut wheels = false;
+    let mut reaction = GroundReaction::default();
     for c in &g.contacts {
         let r = c.position_body_m;
         let depth = state.position_ned_m[2] + mat_vec(&r_nb, r)[2];
@@ -326,8 +330,11 @@ fn ground_contact(
         if normal == 0.0 {
             continue;
         }
-        normal_total += normal;
-        wheels |= c.position_body_m[2] > 0.2;
+        reaction.normal_force_n += normal;
+        match c.kind {
+            ContactKind::Wheel => reaction.wheels = true,
+            ContactKind::Skid => reaction.airframe = true,
+        }
 
         // Rolling direction: the wheel's heading projected on the ground.
         let steer = if c.steerable { u.steering_rad } else { 0.0 };
@@ -356,10 +363,10 @@ fn ground_contact(
             -normal,
         ];
         let f_body = mat_t_vec(&r_nb, f_ned);
-        force = add(force, f_body);
-        moment = add(moment, cross(r, f_body));
+        reaction.force_body_n = add(reaction.force_body_n, f_body);
+        reaction.moment_body_nm = add(reaction.moment_body_nm, cross(r, f_body));
     }
-    (force, moment, normal_total, wheels)
+    reaction
 }
 
 /// All forces except gravity, and all moments, at one state.
@@ -372,18 +379,22 @@ pub fn forces_and_moments(
     let air = air_data(state, air_mass);
     let (f_aero, m_aero) = aerodynamics(p, state, u, &air);
     let prop = propulsion(p, air.airspeed_mps, u.throttle);
-    let (f_ground, m_ground, normal, wheels) = ground_contact(p, state, u);
+    let ground = ground_contact(p, state, u);
     // Thrust along body x through the CG; the propeller (turning clockwise seen from behind)
     // twists the airframe the other way: −Q about x (book eq. 4.25).
-    let force = add(add(f_aero, [prop.thrust_n, 0.0, 0.0]), f_ground);
-    let moment = add(add(m_aero, [-prop.prop_torque_nm, 0.0, 0.0]), m_ground);
+    let force = add(add(f_aero, [prop.thrust_n, 0.0, 0.0]), ground.force_body_n);
+    let moment = add(
+        add(m_aero, [-prop.prop_torque_nm, 0.0, 0.0]),
+        ground.moment_body_nm,
+    );
     ForcesAndMoments {
         contact_and_aero_force_body_n: force,
         moment_body_nm: moment,
         air,
         propulsion: prop,
-        ground_normal_force_n: normal,
-        wheels_on_ground: wheels,
+        ground_normal_force_n: ground.normal_force_n,
+        wheels_on_ground: ground.wheels,
+        airframe_on_ground: ground.airframe,
     }
 }
 

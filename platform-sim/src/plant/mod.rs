@@ -122,6 +122,9 @@ pub struct Truth {
     pub motor_speed_radps: f64,
     /// A landing-gear wheel touches the ground.
     pub on_ground: bool,
+    /// Some other part of the airframe touches the ground: a tail or wing-tip strike, or a
+    /// crash.
+    pub airframe_strike: bool,
     /// Height of the CG above the ground plane (m).
     pub height_above_ground_m: f64,
 }
@@ -324,6 +327,7 @@ impl Plant {
             thrust_n: f.propulsion.thrust_n,
             motor_speed_radps: f.propulsion.motor_speed_radps,
             on_ground: f.wheels_on_ground,
+            airframe_strike: f.airframe_on_ground,
             height_above_ground_m: -s.position_ned_m[2],
         }
     }

@@ -67,9 +67,18 @@ impl PropulsionParams {
     }
 }
 
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ContactKind {
+    /// Landing gear: meant to touch the ground.
+    Wheel,
+    /// Any other part of the airframe: touching the ground is a strike (or a crash).
+    Skid,
+}
+
 /// One point where the airframe can touch the ground: a wheel, a wing tip, the tail.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ContactPoint {
+    pub kind: ContactKind,
     /// Position relative to the centre of gravity, body FRD (m).
     pub position_body_m: [f64; 3],
     /// Vertical spring stiffness (N/m).
@@ -109,6 +118,7 @@ impl GroundParams {
         let nose_share = -MAIN_X_M / (NOSE_X_M - MAIN_X_M);
         let main_share = (1.0 - nose_share) / 2.0;
         let wheel = |x: f64, y: f64, share: f64, steerable: bool, brake: f64| ContactPoint {
+            kind: ContactKind::Wheel,
             position_body_m: [x, y, 0.30],
             stiffness_n_per_m: share * TOTAL_STIFFNESS_N_PER_M,
             damping_ns_per_m: share * TOTAL_DAMPING_NS_PER_M,
@@ -123,6 +133,7 @@ impl GroundParams {
         // through a 1.45 m arm, and stiffer springs or dampers make RK4 at the coarsest
         // allowed step (10 ms) unstable in a crash.
         let skid = |x: f64, y: f64, z: f64| ContactPoint {
+            kind: ContactKind::Skid,
             position_body_m: [x, y, z],
             stiffness_n_per_m: 8_000.0,
             damping_ns_per_m: 200.0,
@@ -152,7 +163,7 @@ impl GroundParams {
         let wheels: Vec<&ContactPoint> = self
             .contacts
             .iter()
-            .filter(|c| c.position_body_m[2] > 0.2)
+            .filter(|c| c.kind == ContactKind::Wheel)
             .collect();
         let stiffness: f64 = wheels.iter().map(|c| c.stiffness_n_per_m).sum();
         let depth = wheels

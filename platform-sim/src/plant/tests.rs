@@ -237,6 +237,7 @@ fn full_throttle_takes_off_and_climbs() {
     let mut liftoff: Option<(f64, f64, f64)> = None;
     for _ in 0..3000 {
         let t = plant.truth();
+        assert!(!t.airframe_strike, "tail or wing strike: {t:?}");
         if liftoff.is_none() && !t.on_ground && t.height_above_ground_m > 1.0 {
             liftoff = Some((t.t_s, t.position_ned_m[0], t.airspeed_mps));
         }
@@ -254,6 +255,98 @@ fn full_throttle_takes_off_and_climbs() {
     assert!(
         end.position_ned_m[1].abs() < 20.0,
         "left the runway line: {end:?}"
+    );
+}
+
+/// A crude landing pilot: hold the sink rate with pitch and the airspeed with throttle down
+/// to 4 m, then flare on pitch and power, then brake on the ground.
+struct LandingPilot {
+    trim: Trim,
+    rest_height_m: f64,
+}
+
+impl LandingPilot {
+    fn command(&self, t: &Truth) -> ActuatorCommands {
+        let height = t.height_above_ground_m - self.rest_height_m;
+        let climb = -t.velocity_ned_mps[2];
+        let wings_level = -2.0 * t.roll_rad - 0.3 * t.rates_body_radps[0];
+        let heading = -t.yaw_rad - 0.3 * t.rates_body_radps[2];
+        if t.on_ground && height < 0.05 {
+            return ActuatorCommands {
+                aileron: wings_level,
+                elevator: 0.0,
+                rudder: heading,
+                throttle: 0.0,
+                brake: if t.airspeed_mps < 15.0 { 1.0 } else { 0.0 },
+            };
+        }
+        let flare = height < 4.0;
+        let target_climb = if flare { -0.2 - 0.2 * height } else { -1.5 };
+        let pitch_target = self.trim.pitch_rad + 0.15 * (target_climb - climb);
+        let elevator = self.trim.commands.elevator + 3.0 * (pitch_target - t.pitch_rad)
+            - 0.5 * t.rates_body_radps[1];
+        // The elevator alone cannot flare much (the Aerosonde's C_m_α is strong and its
+        // elevator reaches only about 9° of α), so power stays on and holds the sink down.
+        let throttle = if flare {
+            (0.6 * self.trim.commands.throttle + 0.5 * (target_climb - climb)).clamp(0.0, 1.0)
+        } else {
+            self.trim.commands.throttle + 0.1 * (20.0 - t.airspeed_mps)
+        };
+        ActuatorCommands {
+            aileron: self.trim.commands.aileron + wings_level,
+            elevator,
+            rudder: heading,
+            throttle,
+            brake: 0.0,
+        }
+    }
+}
+
+#[test]
+fn approach_touches_down_gently_and_stops_on_its_wheels() {
+    let params = AircraftParams::aerosonde();
+    let trim = trim_level_flight(&params, 20.0, 30.0, 0.0).expect("trim");
+    let pilot = LandingPilot {
+        trim,
+        rest_height_m: params.ground.rest_height_m(params.mass_kg),
+    };
+    let mut plant = calm_plant(trim.initial, 1);
+    let mut touchdown: Option<Truth> = None;
+    for _ in 0..9000 {
+        let t = plant.truth();
+        assert!(!t.airframe_strike, "strike: {t:?}");
+        if touchdown.is_none() && t.on_ground {
+            touchdown = Some(t);
+        }
+        let c = pilot.command(&t);
+        plant.step(DT, &c);
+    }
+    let td = touchdown.expect("never touched down");
+    println!(
+        "touchdown at {:.1} s, {:.0} m, sink {:.2} m/s, {:.1} m/s airspeed, pitch {:.1}°",
+        td.t_s,
+        td.position_ned_m[0],
+        td.velocity_ned_mps[2],
+        td.airspeed_mps,
+        td.pitch_rad.to_degrees()
+    );
+    assert!(td.velocity_ned_mps[2] < 1.0, "hard landing: {td:?}");
+    let end = plant.truth();
+    println!(
+        "stopped {:.0} m after touchdown",
+        end.position_ned_m[0] - td.position_ned_m[0]
+    );
+    assert!(
+        end.on_ground && end.velocity_ned_mps.iter().all(|v| v.abs() < 0.05),
+        "{end:?}"
+    );
+    assert!(
+        end.roll_rad.abs() < 0.01 && end.pitch_rad.abs() < 0.01,
+        "{end:?}"
+    );
+    assert!(
+        end.position_ned_m[0] - td.position_ned_m[0] < 300.0,
+        "{end:?}"
     );
 }
 
