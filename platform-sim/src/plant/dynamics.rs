@@ -9,10 +9,10 @@
 //! spring–damper with friction at each landing-gear wheel and skid point; not in the book).
 
 use super::math::{
-    Quat, Vec3, add, cross, mat_t_vec, mat_vec, norm, quat_derivative, quat_normalize,
+    Mat3, Quat, Vec3, add, cross, mat_t_vec, mat_vec, norm, quat_derivative, quat_normalize,
     quat_to_rotation, scale, sub,
 };
-use super::params::{AircraftParams, ContactKind, GRAVITY_MPS2};
+use super::params::{AircraftParams, ContactKind, ContactPoint, GRAVITY_MPS2};
 
 /// The integrated state.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -215,6 +215,16 @@ pub fn drag_coefficient(p: &AircraftParams, alpha: f64) -> f64 {
     p.c_d_p + (1.0 - sigma) * linear + sigma * flat_plate
 }
 
+/// Pitching-moment coefficient against α: the book's linear `C_m0 + C_mα·α` in attached
+/// flow, blended with the same σ(α) to `C_mα·sin α` past the stall. The linear law alone
+/// would jump from −8.6 to +8.6 when the air comes from behind and α wraps from +π to −π (a
+/// parked airplane in a tailwind would shake on its nose wheel); `sin α` is continuous there
+/// and still pitches the nose into the wind.
+pub fn pitching_moment_coefficient(p: &AircraftParams, alpha: f64) -> f64 {
+    let sigma = stall_blend(p, alpha);
+    (1.0 - sigma) * (p.c_m_0 + p.c_m_alpha * alpha) + sigma * p.c_m_alpha * alpha.sin()
+}
+
 /// Motor speed, thrust and torque (Beard & McLain 2nd ed. §4.3): the motor speed solves
 /// `a Ω² + b Ω + c = 0` (motor torque = propeller torque), then
 /// `T = ρ n² D⁴ C_T(J)`, `Q = ρ n² D⁵ C_Q(J)` with `n = Ω/2π`, `J = Va/(n D)`. Expanded so
@@ -296,9 +306,10 @@ fn aerodynamics(
             + p.c_ell_delta_a * u.aileron_rad
             + p.c_ell_delta_r * u.rudder_rad)
         + b * (p.c_ell_p * p_term + p.c_ell_r * r_term);
-    let pitch =
-        qbar_s * p.chord_m * (p.c_m_0 + p.c_m_alpha * alpha + p.c_m_delta_e * u.elevator_rad)
-            + p.chord_m * p.c_m_q * q_term;
+    let pitch = qbar_s
+        * p.chord_m
+        * (pitching_moment_coefficient(p, alpha) + p.c_m_delta_e * u.elevator_rad)
+        + p.chord_m * p.c_m_q * q_term;
     let yaw = qbar_s
         * b
         * (p.c_n_0
@@ -309,64 +320,148 @@ fn aerodynamics(
     ([fx, fy, fz], [roll, pitch, yaw])
 }
 
+/// Where each contact point is stuck to the ground, NED (north, east) in metres, by index in
+/// `GroundParams::contacts`; `None` while it does not touch. Friction is a stiff spring to this
+/// anchor, limited to μN, and the anchor slides when the limit is reached (elasto-plastic
+/// friction): a parked airplane is held by static friction instead of creeping, and a rolling
+/// or skidding one feels Coulomb friction. The plant moves the anchors after each step with
+/// [`update_contact_anchors`]; an empty slice means "anchored where it stands".
+pub type ContactAnchors = Vec<Option<[f64; 2]>>;
+
+/// One touching contact point, in NED.
+struct ContactGeometry {
+    point_ned: Vec3,
+    velocity_ned: Vec3,
+    normal_n: f64,
+    /// Unit ground vectors along and across the rolling direction.
+    along: [f64; 2],
+    across: [f64; 2],
+}
+
+fn contact_geometry(
+    c: &ContactPoint,
+    state: &RigidBodyState,
+    r_nb: &Mat3,
+    steering_rad: f64,
+) -> Option<ContactGeometry> {
+    let r = c.position_body_m;
+    let point_ned = add(state.position_ned_m, mat_vec(r_nb, r));
+    let depth = point_ned[2];
+    if depth <= 0.0 {
+        return None;
+    }
+    let velocity_ned = mat_vec(
+        r_nb,
+        add(state.velocity_body_mps, cross(state.rates_body_radps, r)),
+    );
+    // A spring–damper that only pushes: the ground never pulls the airplane down, so it
+    // leaves the ground cleanly instead of sticking (and the damping cannot fling it up).
+    let normal_n = (c.stiffness_n_per_m * depth + c.damping_ns_per_m * velocity_ned[2]).max(0.0);
+    if normal_n == 0.0 {
+        return None;
+    }
+    // Rolling direction: the wheel's heading projected on the ground.
+    let steer = if c.steerable { steering_rad } else { 0.0 };
+    let h = mat_vec(r_nb, [steer.cos(), steer.sin(), 0.0]);
+    let h_len = h[0].hypot(h[1]);
+    // A point whose heading is near vertical (nose-down crash) skids with no preferred
+    // direction: any orthonormal pair of ground axes will do.
+    let along = if h_len > 1e-3 {
+        [h[0] / h_len, h[1] / h_len]
+    } else {
+        [1.0, 0.0]
+    };
+    Some(ContactGeometry {
+        point_ned,
+        velocity_ned,
+        normal_n,
+        along,
+        across: [-along[1], along[0]],
+    })
+}
+
+/// Friction limits (N) along and across the rolling direction.
+fn friction_limits(c: &ContactPoint, normal_n: f64, brake: f64) -> (f64, f64) {
+    (
+        (c.rolling_friction + brake * c.brake_friction) * normal_n,
+        c.side_friction * normal_n,
+    )
+}
+
+fn dot2(a: [f64; 2], b: [f64; 2]) -> f64 {
+    a[0] * b[0] + a[1] * b[1]
+}
+
 /// Ground reaction at every contact point below the ground plane (NED z = 0, flat).
-fn ground_contact(p: &AircraftParams, state: &RigidBodyState, u: &ControlInputs) -> GroundReaction {
-    let g = &p.ground;
+fn ground_contact(
+    p: &AircraftParams,
+    state: &RigidBodyState,
+    u: &ControlInputs,
+    anchors: &[Option<[f64; 2]>],
+) -> GroundReaction {
     let r_nb = quat_to_rotation(state.attitude);
     let mut reaction = GroundReaction::default();
-    for c in &g.contacts {
-        let r = c.position_body_m;
-        let depth = state.position_ned_m[2] + mat_vec(&r_nb, r)[2];
-        if depth <= 0.0 {
+    for (i, c) in p.ground.contacts.iter().enumerate() {
+        let Some(g) = contact_geometry(c, state, &r_nb, u.steering_rad) else {
             continue;
-        }
-        let v_point_ned = mat_vec(
-            &r_nb,
-            add(state.velocity_body_mps, cross(state.rates_body_radps, r)),
-        );
-        // A spring–damper that only pushes: the ground never pulls the airplane down, so it
-        // leaves the ground cleanly instead of sticking (and the damping cannot fling it up).
-        let normal = (c.stiffness_n_per_m * depth + c.damping_ns_per_m * v_point_ned[2]).max(0.0);
-        if normal == 0.0 {
-            continue;
-        }
-        reaction.normal_force_n += normal;
+        };
+        reaction.normal_force_n += g.normal_n;
         match c.kind {
             ContactKind::Wheel => reaction.wheels = true,
             ContactKind::Skid => reaction.airframe = true,
         }
-
-        // Rolling direction: the wheel's heading projected on the ground.
-        let steer = if c.steerable { u.steering_rad } else { 0.0 };
-        let heading_body = [steer.cos(), steer.sin(), 0.0];
-        let h = mat_vec(&r_nb, heading_body);
-        let h_len = (h[0] * h[0] + h[1] * h[1]).sqrt();
-        // A point whose heading is near vertical (nose-down crash) skids with no preferred
-        // direction: any orthonormal pair of ground axes will do.
-        let (along, across) = if h_len > 1e-3 {
-            let a = [h[0] / h_len, h[1] / h_len, 0.0];
-            (a, [-a[1], a[0], 0.0])
-        } else {
-            ([1.0, 0.0, 0.0], [0.0, 1.0, 0.0])
-        };
-        let v_along = v_point_ned[0] * along[0] + v_point_ned[1] * along[1];
-        let v_across = v_point_ned[0] * across[0] + v_point_ned[1] * across[1];
-        // Coulomb friction made linear below a small speed: smooth for the integrator, and a
-        // stiff viscous hold when parked.
-        let sat = |v: f64| (v / g.friction_speed_scale_mps).clamp(-1.0, 1.0);
-        let mu_along = c.rolling_friction + u.brake * c.brake_friction;
-        let f_along = -mu_along * normal * sat(v_along);
-        let f_across = -c.side_friction * normal * sat(v_across);
+        let here = [g.point_ned[0], g.point_ned[1]];
+        let anchor = anchors.get(i).copied().flatten().unwrap_or(here);
+        let stretch = [here[0] - anchor[0], here[1] - anchor[1]];
+        let v = [g.velocity_ned[0], g.velocity_ned[1]];
+        let (limit_along, limit_across) = friction_limits(c, g.normal_n, u.brake);
+        let k = c.tangential_stiffness_n_per_m;
+        let d = c.tangential_damping_ns_per_m;
+        let f_along =
+            (-k * dot2(stretch, g.along) - d * dot2(v, g.along)).clamp(-limit_along, limit_along);
+        let f_across = (-k * dot2(stretch, g.across) - d * dot2(v, g.across))
+            .clamp(-limit_across, limit_across);
         let f_ned = [
-            f_along * along[0] + f_across * across[0],
-            f_along * along[1] + f_across * across[1],
-            -normal,
+            f_along * g.along[0] + f_across * g.across[0],
+            f_along * g.along[1] + f_across * g.across[1],
+            -g.normal_n,
         ];
         let f_body = mat_t_vec(&r_nb, f_ned);
         reaction.force_body_n = add(reaction.force_body_n, f_body);
-        reaction.moment_body_nm = add(reaction.moment_body_nm, cross(r, f_body));
+        reaction.moment_body_nm = add(reaction.moment_body_nm, cross(c.position_body_m, f_body));
     }
     reaction
+}
+
+/// Moves the friction anchors after a step: a point that touches keeps its anchor unless the
+/// spring to it would pull harder than friction allows, in which case the anchor is dragged
+/// along (the point slides); a point that does not touch has none.
+pub fn update_contact_anchors(
+    p: &AircraftParams,
+    state: &RigidBodyState,
+    u: &ControlInputs,
+    anchors: &mut ContactAnchors,
+) {
+    let contacts = &p.ground.contacts;
+    anchors.resize(contacts.len(), None);
+    let r_nb = quat_to_rotation(state.attitude);
+    for (c, anchor) in contacts.iter().zip(anchors.iter_mut()) {
+        let Some(g) = contact_geometry(c, state, &r_nb, u.steering_rad) else {
+            *anchor = None;
+            continue;
+        };
+        let here = [g.point_ned[0], g.point_ned[1]];
+        let a = anchor.unwrap_or(here);
+        let stretch = [here[0] - a[0], here[1] - a[1]];
+        let (limit_along, limit_across) = friction_limits(c, g.normal_n, u.brake);
+        let k = c.tangential_stiffness_n_per_m.max(1e-9);
+        let s_along = dot2(stretch, g.along).clamp(-limit_along / k, limit_along / k);
+        let s_across = dot2(stretch, g.across).clamp(-limit_across / k, limit_across / k);
+        *anchor = Some([
+            here[0] - s_along * g.along[0] - s_across * g.across[0],
+            here[1] - s_along * g.along[1] - s_across * g.across[1],
+        ]);
+    }
 }
 
 /// All forces except gravity, and all moments, at one state.
@@ -375,11 +470,12 @@ pub fn forces_and_moments(
     state: &RigidBodyState,
     u: &ControlInputs,
     air_mass: &AirMass,
+    anchors: &[Option<[f64; 2]>],
 ) -> ForcesAndMoments {
     let air = air_data(state, air_mass);
     let (f_aero, m_aero) = aerodynamics(p, state, u, &air);
     let prop = propulsion(p, air.airspeed_mps, u.throttle);
-    let ground = ground_contact(p, state, u);
+    let ground = ground_contact(p, state, u, anchors);
     // Thrust along body x through the CG; the propeller (turning clockwise seen from behind)
     // twists the airframe the other way: −Q about x (book eq. 4.25).
     let force = add(add(f_aero, [prop.thrust_n, 0.0, 0.0]), ground.force_body_n);
@@ -405,8 +501,9 @@ pub fn derivative(
     state: &RigidBodyState,
     u: &ControlInputs,
     air_mass: &AirMass,
+    anchors: &[Option<[f64; 2]>],
 ) -> (RigidBodyState, ForcesAndMoments) {
-    let fm = forces_and_moments(p, state, u, air_mass);
+    let fm = forces_and_moments(p, state, u, air_mass, anchors);
     let r_nb = quat_to_rotation(state.attitude);
     let gravity_body = mat_t_vec(&r_nb, [0.0, 0.0, p.mass_kg * GRAVITY_MPS2]);
     let force = add(fm.contact_and_aero_force_body_n, gravity_body);
@@ -438,12 +535,13 @@ pub fn rk4_step(
     state: &RigidBodyState,
     u: &ControlInputs,
     air_mass: &AirMass,
+    anchors: &[Option<[f64; 2]>],
     dt_s: f64,
 ) -> RigidBodyState {
-    let (k1, _) = derivative(p, state, u, air_mass);
-    let (k2, _) = derivative(p, &state.add_scaled(&k1, dt_s / 2.0), u, air_mass);
-    let (k3, _) = derivative(p, &state.add_scaled(&k2, dt_s / 2.0), u, air_mass);
-    let (k4, _) = derivative(p, &state.add_scaled(&k3, dt_s), u, air_mass);
+    let (k1, _) = derivative(p, state, u, air_mass, anchors);
+    let (k2, _) = derivative(p, &state.add_scaled(&k1, dt_s / 2.0), u, air_mass, anchors);
+    let (k3, _) = derivative(p, &state.add_scaled(&k2, dt_s / 2.0), u, air_mass, anchors);
+    let (k4, _) = derivative(p, &state.add_scaled(&k3, dt_s), u, air_mass, anchors);
     let mut next = *state;
     next = next.add_scaled(&k1, dt_s / 6.0);
     next = next.add_scaled(&k2, dt_s / 3.0);
@@ -477,6 +575,16 @@ mod tests {
         for i in -314..=314 {
             assert!(drag_coefficient(&p, i as f64 * 0.01) > 0.0);
         }
+    }
+
+    #[test]
+    fn pitching_moment_is_linear_in_attached_flow_and_continuous_in_reverse_flow() {
+        let p = AircraftParams::aerosonde();
+        let at = |a: f64| pitching_moment_coefficient(&p, a);
+        assert!((at(0.1) - (p.c_m_0 + p.c_m_alpha * 0.1)).abs() < 1e-6);
+        assert!((at(std::f64::consts::PI - 1e-9) - at(-std::f64::consts::PI + 1e-9)).abs() < 1e-6);
+        // Stable everywhere that matters: nose-down past the stall, nose-up below −stall.
+        assert!(at(1.0) < 0.0 && at(-1.0) > 0.0);
     }
 
     #[test]

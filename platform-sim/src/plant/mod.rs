@@ -169,6 +169,8 @@ pub struct Plant {
     imu: ImuModel,
     gps: GpsModel,
     battery: BatteryModel,
+    /// Where each ground contact is held by static friction.
+    anchors: dynamics::ContactAnchors,
     /// Forces at the current state, for the truth and the IMU.
     forces: ForcesAndMoments,
 }
@@ -198,8 +200,10 @@ impl Plant {
             state,
             time_ns: 0,
             commands: ActuatorCommands::default(),
+            anchors: Vec::new(),
             forces: ForcesAndMoments::default(),
         };
+        plant.update_anchors();
         plant.forces = plant.current_forces();
         plant
     }
@@ -254,7 +258,13 @@ impl Plant {
             &self.state,
             &self.control_inputs(),
             &self.air_mass(),
+            &self.anchors,
         )
+    }
+
+    fn update_anchors(&mut self) {
+        let u = self.control_inputs();
+        dynamics::update_contact_anchors(&self.config.params, &self.state, &u, &mut self.anchors);
     }
 
     /// Advances the plant by `dt_s` (rounded to whole ns) with `commands` held, in RK4 sub-steps
@@ -281,8 +291,15 @@ impl Plant {
             done_ns = end_ns;
             let h = h_ns as f64 * 1e-9;
             self.wind.step(h, self.forces.air.airspeed_mps);
-            self.state =
-                dynamics::rk4_step(&self.config.params, &self.state, &u, &self.air_mass(), h);
+            self.state = dynamics::rk4_step(
+                &self.config.params,
+                &self.state,
+                &u,
+                &self.air_mass(),
+                &self.anchors,
+                h,
+            );
+            self.update_anchors();
             self.time_ns += h_ns;
             self.forces = self.current_forces();
             let t = self.time_s();

@@ -85,6 +85,10 @@ pub struct ContactPoint {
     pub stiffness_n_per_m: f64,
     /// Vertical damping (N·s/m).
     pub damping_ns_per_m: f64,
+    /// Horizontal spring (N/m) and damper (N·s/m) of static friction (see
+    /// `dynamics::ContactAnchors`): how far a tyre flexes before it slides.
+    pub tangential_stiffness_n_per_m: f64,
+    pub tangential_damping_ns_per_m: f64,
     /// Friction coefficient along the rolling direction (rolling resistance for a wheel).
     pub rolling_friction: f64,
     /// Friction coefficient across the rolling direction (tyre side force, or skid).
@@ -102,9 +106,6 @@ pub struct GroundParams {
     pub contacts: Vec<ContactPoint>,
     /// Nose-wheel steering angle at full rudder command (rad); positive command steers right.
     pub max_steering_rad: f64,
-    /// Below this ground speed (m/s) friction fades linearly to zero, so the friction law stays
-    /// smooth (no chattering sign flips) and a parked airplane is held by a stiff viscous drag.
-    pub friction_speed_scale_mps: f64,
 }
 
 impl GroundParams {
@@ -122,6 +123,8 @@ impl GroundParams {
             position_body_m: [x, y, 0.30],
             stiffness_n_per_m: share * TOTAL_STIFFNESS_N_PER_M,
             damping_ns_per_m: share * TOTAL_DAMPING_NS_PER_M,
+            tangential_stiffness_n_per_m: share * TOTAL_STIFFNESS_N_PER_M,
+            tangential_damping_ns_per_m: share * TOTAL_DAMPING_NS_PER_M,
             rolling_friction: 0.03,
             side_friction: 0.8,
             brake_friction: brake,
@@ -137,6 +140,8 @@ impl GroundParams {
             position_body_m: [x, y, z],
             stiffness_n_per_m: 8_000.0,
             damping_ns_per_m: 200.0,
+            tangential_stiffness_n_per_m: 4_000.0,
+            tangential_damping_ns_per_m: 100.0,
             rolling_friction: 0.6,
             side_friction: 0.6,
             brake_friction: 0.0,
@@ -153,7 +158,6 @@ impl GroundParams {
                 skid(0.75, 0.0, 0.05),
             ],
             max_steering_rad: 20f64.to_radians(),
-            friction_speed_scale_mps: 0.2,
         }
     }
 

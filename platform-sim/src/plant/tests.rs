@@ -360,8 +360,13 @@ fn lift_falls_past_the_stall_angle() {
             attitude: quat_from_euler(0.0, 0.0, 0.0),
             rates_body_radps: [0.0; 3],
         };
-        let f =
-            dynamics::forces_and_moments(&p, &s, &ControlInputs::default(), &AirMass::default());
+        let f = dynamics::forces_and_moments(
+            &p,
+            &s,
+            &ControlInputs::default(),
+            &AirMass::default(),
+            &[],
+        );
         let [fx, _, fz] = f.contact_and_aero_force_body_n;
         // Lift is perpendicular to the relative wind; remove the (zero) thrust first.
         let fx = fx - f.propulsion.thrust_n;
@@ -621,4 +626,48 @@ fn plant_speed() {
         "{plant_seconds} plant s at 1 kHz RK4 (+100 Hz IMU, GPS) in {wall:.3} wall s: {:.0} plant s per wall s",
         plant_seconds / wall
     );
+}
+
+#[test]
+fn parked_airplane_holds_still_in_gusty_wind() {
+    let params = AircraftParams::aerosonde();
+    let cases = [
+        ([5.0, 0.0, 0.0], 0.0),
+        ([-8.0, 0.0, 0.0], 1.0),
+        ([0.0, 5.0, 0.0], 1.0),
+        ([3.0, -4.0, 0.0], 1.0),
+    ];
+    for (wind, brake) in cases {
+        let cfg = WindConfig {
+            steady_ned_mps: wind,
+            turbulence: Some(DrydenParams::light_low_altitude()),
+        };
+        let mut plant = Plant::new(
+            params.clone(),
+            InitialState::on_runway(&params, 0.0),
+            cfg,
+            1,
+        );
+        fly(
+            &mut plant,
+            60.0,
+            &ActuatorCommands {
+                brake,
+                ..Default::default()
+            },
+        );
+        let t = plant.truth();
+        // Static friction holds it (mm of tyre flex), rather than a slow creep.
+        let moved = t.position_ned_m[0].hypot(t.position_ned_m[1]);
+        assert!(
+            moved < 0.02,
+            "wind {wind:?}, brake {brake}: moved {moved} m"
+        );
+        assert!(
+            t.yaw_rad.abs() < 0.5f64.to_radians(),
+            "wind {wind:?}: yaw {}",
+            t.yaw_rad
+        );
+        assert!(t.on_ground && !t.airframe_strike);
+    }
 }

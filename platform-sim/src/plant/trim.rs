@@ -64,7 +64,7 @@ fn residual(
     yaw: f64,
 ) -> [f64; UNKNOWNS] {
     let (s, u) = trimmed_state(x, va, alt, yaw);
-    let (d, _) = dynamics::derivative(p, &s, &u, &AirMass::default());
+    let (d, _) = dynamics::derivative(p, &s, &u, &AirMass::default(), &[]);
     let [a, b, c] = d.velocity_body_mps;
     let [e, f, g] = d.rates_body_radps;
     [a, b, c, e, f, g]
