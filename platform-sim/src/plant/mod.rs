@@ -6,6 +6,27 @@
 //! commands: same seed and commands, bit-identical trajectory and sensor readings.
 //!
 //! Types are plain SI data (no wire encoding): the byte protocols are built elsewhere.
+//!
+//! ```
+//! use skyframe_sim::plant::{ActuatorCommands, AircraftParams, InitialState, Plant, WindConfig};
+//!
+//! let params = AircraftParams::aerosonde();
+//! let start = InitialState::on_runway(&params, 0.0);
+//! let mut plant = Plant::new(params, start, WindConfig::calm(), 42);
+//! let full_throttle = ActuatorCommands { throttle: 1.0, ..Default::default() };
+//! let mut fixes = 0;
+//! for _ in 0..200 {
+//!     plant.step(0.01, &full_throttle); // 10 ms of plant time, in 1 ms RK4 steps
+//!     let imu = plant.sample_imu(); // rates (rad/s) and specific force (m/s²), FRD
+//!     assert!(imu.specific_force_mps2[0] > 0.0); // pushed forward by the propeller
+//!     while let Some(_fix) = plant.sample_gps() {
+//!         fixes += 1;
+//!     }
+//! }
+//! let truth = plant.truth();
+//! assert!(truth.velocity_ned_mps[0] > 5.0 && truth.on_ground);
+//! assert!(fixes >= 15);
+//! ```
 
 pub mod dynamics;
 pub mod math;
@@ -41,6 +62,33 @@ pub struct ActuatorCommands {
     pub throttle: f64,
     /// Main-wheel brakes.
     pub brake: f64,
+}
+
+impl ActuatorCommands {
+    /// Clamped to the ranges, with any non-finite value replaced by neutral (0).
+    pub fn sanitized(&self) -> Self {
+        let surface = |x: f64| {
+            if x.is_finite() {
+                x.clamp(-1.0, 1.0)
+            } else {
+                0.0
+            }
+        };
+        let unit = |x: f64| {
+            if x.is_finite() {
+                x.clamp(0.0, 1.0)
+            } else {
+                0.0
+            }
+        };
+        Self {
+            aileron: surface(self.aileron),
+            elevator: surface(self.elevator),
+            rudder: surface(self.rudder),
+            throttle: unit(self.throttle),
+            brake: unit(self.brake),
+        }
+    }
 }
 
 /// Initial conditions in the terms a person sets them.
@@ -120,6 +168,8 @@ pub struct Truth {
     pub gust_body_mps: Vec3,
     pub thrust_n: f64,
     pub motor_speed_radps: f64,
+    /// Surface and motor positions (normalised, like the commands; they lag the commands).
+    pub actuators: ActuatorCommands,
     /// A landing-gear wheel touches the ground.
     pub on_ground: bool,
     /// Some other part of the airframe touches the ground: a tail or wing-tip strike, or a
@@ -142,6 +192,12 @@ pub struct PlantConfig {
     pub battery: BatteryConfig,
     /// Longest RK4 step (s); [`Plant::step`] splits a longer `dt` into equal sub-steps.
     pub max_step_s: f64,
+    /// Servo response: surfaces follow their commands with this first-order time constant (s);
+    /// 0 for instant.
+    pub surface_time_constant_s: f64,
+    /// Motor spin-up: the effective throttle follows the command with this time constant (s),
+    /// standing in for rotor inertia, which the steady-state motor model leaves out.
+    pub throttle_time_constant_s: f64,
 }
 
 impl Default for PlantConfig {
@@ -153,6 +209,8 @@ impl Default for PlantConfig {
             gps: GpsConfig::default(),
             battery: BatteryConfig::default(),
             max_step_s: 0.001,
+            surface_time_constant_s: 0.03,
+            throttle_time_constant_s: 0.1,
         }
     }
 }
@@ -165,6 +223,9 @@ pub struct Plant {
     /// Plant time (ns), exact: sub-steps are whole nanoseconds.
     time_ns: u64,
     commands: ActuatorCommands,
+    /// Where the surfaces and the motor actually are (normalised); `None` until the first
+    /// command, which they take at once, so a run can start trimmed.
+    actuators: Option<ActuatorCommands>,
     wind: wind::WindModel,
     imu: ImuModel,
     gps: GpsModel,
@@ -200,6 +261,7 @@ impl Plant {
             state,
             time_ns: 0,
             commands: ActuatorCommands::default(),
+            actuators: None,
             anchors: Vec::new(),
             forces: ForcesAndMoments::default(),
         };
@@ -228,9 +290,37 @@ impl Plant {
         &self.state
     }
 
-    /// The commands last applied.
+    /// The commands last applied (sanitised).
     pub fn commands(&self) -> &ActuatorCommands {
         &self.commands
+    }
+
+    /// Where the surfaces and the motor are now, normalised like the commands.
+    pub fn actuators(&self) -> ActuatorCommands {
+        self.actuators.unwrap_or(self.commands)
+    }
+
+    /// Moves the actuators towards the commands over `h` seconds (exact first-order lag).
+    fn move_actuators(&mut self, h: f64) {
+        let target = self.commands;
+        let Some(a) = self.actuators.as_mut() else {
+            self.actuators = Some(target);
+            return;
+        };
+        let follow = |tau: f64| {
+            if tau > 0.0 {
+                1.0 - (-h / tau).exp()
+            } else {
+                1.0
+            }
+        };
+        let ks = follow(self.config.surface_time_constant_s);
+        let kt = follow(self.config.throttle_time_constant_s);
+        a.aileron += ks * (target.aileron - a.aileron);
+        a.elevator += ks * (target.elevator - a.elevator);
+        a.rudder += ks * (target.rudder - a.rudder);
+        a.throttle += kt * (target.throttle - a.throttle);
+        a.brake = target.brake;
     }
 
     fn air_mass(&self) -> AirMass {
@@ -241,7 +331,7 @@ impl Plant {
     }
 
     fn control_inputs(&self) -> ControlInputs {
-        let c = &self.commands;
+        let c = self.actuators();
         ControlInputs::from_commands(
             &self.config.params,
             c.aileron,
@@ -270,7 +360,7 @@ impl Plant {
     /// Advances the plant by `dt_s` (rounded to whole ns) with `commands` held, in RK4 sub-steps
     /// of at most `max_step_s`. Wind, GPS and batteries advance once per sub-step.
     pub fn step(&mut self, dt_s: f64, commands: &ActuatorCommands) {
-        self.commands = *commands;
+        self.commands = commands.sanitized();
         let dt_ns = (dt_s.max(0.0) * 1e9).round() as u64;
         if dt_ns == 0 {
             return;
@@ -278,11 +368,6 @@ impl Plant {
         let max_step_s = self.config.max_step_s.min(MAX_STEP_S);
         let max_ns = ((max_step_s * 1e9).round() as u64).max(1);
         let substeps = dt_ns.div_ceil(max_ns);
-        let u = self.control_inputs();
-        let effort = commands.aileron.abs().min(1.0)
-            + commands.elevator.abs().min(1.0)
-            + commands.rudder.abs().min(1.0);
-        let effort = if effort.is_finite() { effort } else { 0.0 };
         let mut done_ns = 0;
         for k in 0..substeps {
             // Spread the remainder so the sub-steps add up to exactly dt.
@@ -290,6 +375,10 @@ impl Plant {
             let h_ns = end_ns - done_ns;
             done_ns = end_ns;
             let h = h_ns as f64 * 1e-9;
+            self.move_actuators(h);
+            let u = self.control_inputs();
+            let a = self.actuators();
+            let effort = a.aileron.abs() + a.elevator.abs() + a.rudder.abs();
             self.wind.step(h, self.forces.air.airspeed_mps);
             self.state = dynamics::rk4_step(
                 &self.config.params,
@@ -343,6 +432,7 @@ impl Plant {
             gust_body_mps: gust,
             thrust_n: f.propulsion.thrust_n,
             motor_speed_radps: f.propulsion.motor_speed_radps,
+            actuators: self.actuators(),
             on_ground: f.wheels_on_ground,
             airframe_strike: f.airframe_on_ground,
             height_above_ground_m: -s.position_ned_m[2],

@@ -671,3 +671,41 @@ fn parked_airplane_holds_still_in_gusty_wind() {
         assert!(t.on_ground && !t.airframe_strike);
     }
 }
+
+#[test]
+fn surfaces_lag_their_commands_and_bad_commands_are_neutral() {
+    let trim = trimmed(25.0);
+    let mut plant = calm_plant(trim.initial, 1);
+    // The first command is taken at once, so a run starts trimmed.
+    plant.step(0.001, &trim.commands);
+    assert_eq!(plant.actuators(), trim.commands);
+    let cmd = ActuatorCommands {
+        aileron: 1.0,
+        ..trim.commands
+    };
+    let tau = plant.config().surface_time_constant_s;
+    plant.step(tau, &cmd);
+    let a = plant.actuators().aileron;
+    let expected = trim.commands.aileron + (1.0 - trim.commands.aileron) * (1.0 - (-1.0f64).exp());
+    assert!((a - expected).abs() < 1e-3, "{a} vs {expected}");
+    assert_eq!(plant.truth().actuators.aileron, a);
+    let bad = ActuatorCommands {
+        aileron: f64::NAN,
+        elevator: f64::INFINITY,
+        rudder: 7.0,
+        throttle: -3.0,
+        brake: f64::NEG_INFINITY,
+    };
+    assert_eq!(
+        bad.sanitized(),
+        ActuatorCommands {
+            aileron: 0.0,
+            elevator: 0.0,
+            rudder: 1.0,
+            throttle: 0.0,
+            brake: 0.0
+        }
+    );
+    fly(&mut plant, 1.0, &bad);
+    assert!(all_finite(&plant.truth()));
+}
