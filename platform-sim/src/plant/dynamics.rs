@@ -196,7 +196,10 @@ pub fn stall_blend(p: &AircraftParams, alpha: f64) -> f64 {
 
 /// Lift coefficient with the post-stall blend to a flat plate (eq. 4.9).
 pub fn lift_coefficient(p: &AircraftParams, alpha: f64) -> f64 {
-    let sigma = stall_blend(p, alpha);
+    lift_blended(p, alpha, stall_blend(p, alpha))
+}
+
+fn lift_blended(p: &AircraftParams, alpha: f64, sigma: f64) -> f64 {
     let linear = p.c_l_0 + p.c_l_alpha * alpha;
     let (s, c) = alpha.sin_cos();
     let flat_plate = 2.0 * alpha.signum() * s * s * c;
@@ -208,7 +211,10 @@ pub fn lift_coefficient(p: &AircraftParams, alpha: f64) -> f64 {
 /// drag stays positive and grows as the wing goes broadside to the flow. `C_D_p` is added as
 /// the book's parasitic term (zero for the Aerosonde).
 pub fn drag_coefficient(p: &AircraftParams, alpha: f64) -> f64 {
-    let sigma = stall_blend(p, alpha);
+    drag_blended(p, alpha, stall_blend(p, alpha))
+}
+
+fn drag_blended(p: &AircraftParams, alpha: f64, sigma: f64) -> f64 {
     let linear = p.c_d_0 + p.c_d_alpha * alpha;
     let s = alpha.sin();
     let flat_plate = p.c_d_0 + 2.0 * s * s;
@@ -221,7 +227,10 @@ pub fn drag_coefficient(p: &AircraftParams, alpha: f64) -> f64 {
 /// parked airplane in a tailwind would shake on its nose wheel); `sin α` is continuous there
 /// and still pitches the nose into the wind.
 pub fn pitching_moment_coefficient(p: &AircraftParams, alpha: f64) -> f64 {
-    let sigma = stall_blend(p, alpha);
+    pitching_moment_blended(p, alpha, stall_blend(p, alpha))
+}
+
+fn pitching_moment_blended(p: &AircraftParams, alpha: f64, sigma: f64) -> f64 {
     (1.0 - sigma) * (p.c_m_0 + p.c_m_alpha * alpha) + sigma * p.c_m_alpha * alpha.sin()
 }
 
@@ -274,6 +283,8 @@ fn aerodynamics(
     let alpha = air.alpha_rad;
     let beta = air.beta_rad;
     let [pr, qr, rr] = state.rates_body_radps;
+    // One σ(α) for lift, drag and moment: its exponentials are the costliest part here.
+    let sigma = stall_blend(p, alpha);
     let half_rho_s = 0.5 * p.air_density_kgpm3 * p.wing_area_m2;
     let qbar_s = half_rho_s * va * va;
     // ½ρS·Va²·(c q/2Va) = ½ρS·Va·c·q/2, and likewise with b for p and r.
@@ -281,11 +292,11 @@ fn aerodynamics(
     let p_term = half_rho_s * va * p.wingspan_m * pr / 2.0;
     let r_term = half_rho_s * va * p.wingspan_m * rr / 2.0;
 
-    let lift =
-        qbar_s * (lift_coefficient(p, alpha) + p.c_l_delta_e * u.elevator_rad) + p.c_l_q * q_term;
+    let lift = qbar_s * (lift_blended(p, alpha, sigma) + p.c_l_delta_e * u.elevator_rad)
+        + p.c_l_q * q_term;
     // The book writes C_D_δe·δe; |δe| makes a deflected elevator add drag either way rather
     // than give free thrust at up-elevator.
-    let drag = qbar_s * (drag_coefficient(p, alpha) + p.c_d_delta_e * u.elevator_rad.abs())
+    let drag = qbar_s * (drag_blended(p, alpha, sigma) + p.c_d_delta_e * u.elevator_rad.abs())
         + p.c_d_q * q_term;
     let (sa, ca) = alpha.sin_cos();
     let fx = -drag * ca + lift * sa;
@@ -308,7 +319,7 @@ fn aerodynamics(
         + b * (p.c_ell_p * p_term + p.c_ell_r * r_term);
     let pitch = qbar_s
         * p.chord_m
-        * (pitching_moment_coefficient(p, alpha) + p.c_m_delta_e * u.elevator_rad)
+        * (pitching_moment_blended(p, alpha, sigma) + p.c_m_delta_e * u.elevator_rad)
         + p.chord_m * p.c_m_q * q_term;
     let yaw = qbar_s
         * b
