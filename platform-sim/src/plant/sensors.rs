@@ -403,7 +403,14 @@ impl GpsModel {
     pub fn update(&mut self, t_s: f64, position_ned_m: Vec3, velocity_ned_mps: Vec3) {
         while t_s >= self.next_fix_s {
             let valid_at = self.next_fix_s;
-            let sample = self.make_fix(valid_at, position_ned_m, velocity_ned_mps);
+            // The fix fell due up to one plant step ago: take the position back to then.
+            let back = t_s - valid_at;
+            let position_then = [
+                position_ned_m[0] - velocity_ned_mps[0] * back,
+                position_ned_m[1] - velocity_ned_mps[1] * back,
+                position_ned_m[2] - velocity_ned_mps[2] * back,
+            ];
+            let sample = self.make_fix(valid_at, position_then, velocity_ned_mps);
             self.pending.push_back(sample);
             self.last_fix_s = Some(valid_at);
             let interval = self.draw_interval();

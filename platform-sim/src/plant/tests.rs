@@ -709,3 +709,43 @@ fn surfaces_lag_their_commands_and_bad_commands_are_neutral() {
     fly(&mut plant, 1.0, &bad);
     assert!(all_finite(&plant.truth()));
 }
+
+#[test]
+fn ideal_gps_reports_where_the_airplane_was_when_the_fix_was_valid() {
+    let trim = trimmed(25.0);
+    let cfg = PlantConfig {
+        gps: GpsConfig::ideal(),
+        max_step_s: 0.01,
+        ..PlantConfig::default()
+    };
+    let mut plant = Plant::with_config(cfg, trim.initial, 3);
+    let mut history: Vec<Truth> = vec![plant.truth()];
+    let mut checked = 0;
+    for _ in 0..300 {
+        plant.step(0.01, &trim.commands);
+        history.push(plant.truth());
+        while let Some(fix) = plant.sample_gps() {
+            assert_eq!(fix.fix, GpsFixType::Fix3d);
+            // Latency: delivered 80 ms after it was valid.
+            assert!((fix.available_at_s - fix.valid_at_s - 0.08).abs() < 1e-9);
+            // The truth at the nearest 10 ms step before the fix, moved on to its time.
+            let before = history
+                .iter()
+                .rev()
+                .find(|t| t.t_s <= fix.valid_at_s + 1e-12)
+                .expect("history");
+            let dt = fix.valid_at_s - before.t_s;
+            let ned = plant.config().gps.home.ned_to(&fix.position);
+            for i in 0..3 {
+                let want = before.position_ned_m[i] + before.velocity_ned_mps[i] * dt;
+                assert!(
+                    (ned[i] - want).abs() < 0.05,
+                    "axis {i}: {} vs {want}",
+                    ned[i]
+                );
+            }
+            checked += 1;
+        }
+    }
+    assert!(checked > 20);
+}
