@@ -736,13 +736,9 @@ fn ideal_gps_reports_where_the_airplane_was_when_the_fix_was_valid() {
                 .expect("history");
             let dt = fix.valid_at_s - before.t_s;
             let ned = plant.config().gps.home.ned_to(&fix.position);
-            for i in 0..3 {
+            for (i, got) in ned.iter().enumerate() {
                 let want = before.position_ned_m[i] + before.velocity_ned_mps[i] * dt;
-                assert!(
-                    (ned[i] - want).abs() < 0.05,
-                    "axis {i}: {} vs {want}",
-                    ned[i]
-                );
+                assert!((got - want).abs() < 0.05, "axis {i}: {got} vs {want}");
             }
             checked += 1;
         }
