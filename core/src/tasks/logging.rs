@@ -94,14 +94,12 @@ impl<S: RecordSink> Task for LoggingTask<S> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::comm::Sink;
-    use crate::executive::{Clock, Executive, FrameRecord};
+    use crate::executive::Executive;
     use crate::logfmt::reader::{Event, LogReader, Record, read_slice};
     use crate::schedule::{FrameTable, OverrunPolicy, TaskSlot};
+    use crate::tasks::test_support::{Idle, MS, SetClock, run_frames};
     use core::cell::Cell;
     use std::vec::Vec;
-
-    const MS: u64 = 1_000_000;
 
     /// A ring with room for `capacity` records, keeping what it takes.
     struct Ring {
@@ -117,28 +115,6 @@ mod tests {
             self.records += 1;
             self.bytes.extend_from_slice(record);
             true
-        }
-    }
-
-    struct Tick(Cell<u64>);
-    impl Clock for Tick {
-        fn now_ns(&self) -> u64 {
-            self.0.get()
-        }
-    }
-    struct Nothing;
-    impl Sink<FrameRecord> for Nothing {
-        fn try_send(&mut self, _: FrameRecord) -> Result<(), FrameRecord> {
-            Ok(())
-        }
-    }
-    struct Idle;
-    impl Task for Idle {
-        fn init(&mut self, _: &mut TaskContext<'_>) -> Result<(), TaskFault> {
-            Ok(())
-        }
-        fn step(&mut self, _: &mut TaskContext<'_>) -> Result<(), TaskFault> {
-            Ok(())
         }
     }
 
@@ -168,17 +144,14 @@ mod tests {
     };
 
     fn fly(ring: &mut Ring, seconds: u64) -> (u32, u64) {
-        let clock = Tick(Cell::new(0));
+        let clock = SetClock(Cell::new(0));
         let mut imu = Idle;
         let mut logging = LoggingTask::new(ring, 1000 * MS);
         let mut exec = Executive::new(&TABLE, &clock);
         exec.set_log_time_origin(1_000_000_000_000);
         let mut tasks: [&mut dyn Task; 2] = [&mut imu, &mut logging];
         exec.start(&mut tasks, 0).expect("start");
-        for _ in 0..seconds * 100 {
-            clock.0.set(exec.next_release_ns());
-            exec.run_frame(&mut tasks, &mut Nothing);
-        }
+        run_frames(&mut exec, &clock, &mut tasks, seconds * 100);
         exec.shutdown(&mut tasks);
         (
             exec.health().log_dropped(1),

@@ -5,3 +5,6 @@
 pub mod health;
 pub mod logging;
 pub mod task_log;
+
+#[cfg(test)]
+pub(crate) mod test_support;
