@@ -15,6 +15,29 @@ fn sim(test: &str) -> Command {
     cmd
 }
 
+/// `skyframe sim --json` for `seconds` without real-time settings (tests run beside other
+/// tests), plus `extra` arguments; the run must succeed.
+fn sim_json(test: &str, seconds: &str, extra: &[&str]) -> Value {
+    let out = sim(test)
+        .args([
+            "--duration",
+            seconds,
+            "--json",
+            "--priority",
+            "0",
+            "--no-mlockall",
+        ])
+        .args(extra)
+        .output()
+        .expect("runs");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    json(&out.stdout)
+}
+
 fn json(stdout: &[u8]) -> Value {
     serde_json::from_slice(stdout)
         .unwrap_or_else(|e| panic!("not JSON ({e}): {}", String::from_utf8_lossy(stdout)))
@@ -95,29 +118,16 @@ fn check_schedule_exits_1_on_infeasible_and_2_on_unreadable_files() {
 fn injected_overruns_are_detected_on_the_real_clock_and_policies_apply() {
     // imu (budget 300 us, policy reset) gets 3 ms extra in frames 10..20; estimator (log)
     // 12 ms extra in frames 50..52, which runs frames 50 and 51 into the next frame.
-    let out = sim("injected_overruns_are_detected_on_the_real_clock_and_policies_apply")
-        .args([
-            "--duration",
-            "1",
-            "--json",
-            "--priority",
-            "0",
-            "--no-mlockall",
-        ])
-        .args([
+    let s = sim_json(
+        "injected_overruns_are_detected_on_the_real_clock_and_policies_apply",
+        "1",
+        &[
             "--inject-overrun",
             "imu:3000@10..20",
             "--inject-overrun",
             "estimator:12000@50..52",
-        ])
-        .output()
-        .expect("runs");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+        ],
     );
-    let s = json(&out.stdout);
     let imu = task(&s, "imu");
     assert_eq!(imu["overruns_budget"], 10);
     assert_eq!(
@@ -142,20 +152,11 @@ fn injected_overruns_are_detected_on_the_real_clock_and_policies_apply() {
 fn a_long_stall_misses_whole_frames_and_counts_their_releases() {
     // 35 ms in imu's step of frame 30 (due at 300 ms): it ends near 335 ms, so frames 31
     // (310-320 ms) and 32 (320-330 ms) pass whole and frame 33 starts about 5 ms late.
-    let out = sim("a_long_stall_misses_whole_frames_and_counts_their_releases")
-        .args([
-            "--duration",
-            "1",
-            "--json",
-            "--priority",
-            "0",
-            "--no-mlockall",
-        ])
-        .args(["--inject-overrun", "imu:35000@30..31"])
-        .output()
-        .expect("runs");
-    assert!(out.status.success());
-    let s = json(&out.stdout);
+    let s = sim_json(
+        "a_long_stall_misses_whole_frames_and_counts_their_releases",
+        "1",
+        &["--inject-overrun", "imu:35000@30..31"],
+    );
     assert!(s["frames_missed"].as_u64().unwrap_or(0) >= 2, "{s}");
     assert!(
         task(&s, "imu")["overruns_missed"].as_u64().unwrap_or(0) >= 2,
@@ -220,20 +221,11 @@ fn watchdog_counts_a_task_whose_releases_are_all_skipped() {
     // logging (policy skip, every 10 ms) overruns on every release in frames 20..60: every
     // other release is skipped, so it still completes steps and stays alive. The health task
     // runs every 100 ms and sees all tasks alive.
-    let out = sim("watchdog_counts_a_task_whose_releases_are_all_skipped")
-        .args([
-            "--duration",
-            "1",
-            "--json",
-            "--priority",
-            "0",
-            "--no-mlockall",
-        ])
-        .args(["--inject-overrun", "logging:1000@20..60"])
-        .output()
-        .expect("runs");
-    assert!(out.status.success());
-    let s = json(&out.stdout);
+    let s = sim_json(
+        "watchdog_counts_a_task_whose_releases_are_all_skipped",
+        "1",
+        &["--inject-overrun", "logging:1000@20..60"],
+    );
     assert_eq!(s["watchdog_checks"], 10, "{s}");
     let logging = task(&s, "logging");
     assert_eq!(logging["skipped"], 20, "{s}");
@@ -304,19 +296,7 @@ fn pinning_to_an_existing_cpu_is_granted() {
 
 #[test]
 fn programmed_duration_ends_the_run() {
-    let out = sim("programmed_duration_ends_the_run")
-        .args([
-            "--duration",
-            "0.5",
-            "--json",
-            "--priority",
-            "0",
-            "--no-mlockall",
-        ])
-        .output()
-        .expect("runs");
-    assert!(out.status.success());
-    let s = json(&out.stdout);
+    let s = sim_json("programmed_duration_ends_the_run", "0.5", &[]);
     assert_eq!(s["stop_reason"], "duration");
     assert_eq!(task(&s, "imu")["releases"], 50);
     assert_eq!(task(&s, "gps")["releases"], 5);

@@ -166,6 +166,16 @@ impl<'a> Harness<'a> {
     }
 }
 
+/// `(task, frame)` of every call of one kind (`"step"`, `"init"`, …), in order.
+fn calls(journal: &Journal, what: &str) -> Vec<(&'static str, u64)> {
+    journal
+        .borrow()
+        .iter()
+        .filter(|(_, w, _)| *w == what)
+        .map(|(name, _, frame)| (*name, *frame))
+        .collect()
+}
+
 /// The table's three tasks, named as in `TASKS`, with the given step costs.
 fn three<'a>(
     clock: &'a MockClock,
@@ -195,12 +205,7 @@ fn frames_release_the_table_tasks_in_order() {
     for _ in 0..4 {
         h.frame(&mut tasks, 0);
     }
-    let steps: Vec<_> = journal
-        .borrow()
-        .iter()
-        .filter(|(_, what, _)| *what == "step")
-        .map(|(name, _, frame)| (*name, *frame))
-        .collect();
+    let steps = calls(&journal, "step");
     assert_eq!(
         steps,
         [
@@ -527,11 +532,9 @@ fn run_until_sleeps_to_each_release_and_shutdown_reaches_every_task() {
             .all(|r| r.start_latency_ns == 0 && r.flags == 0)
     );
     exec.shutdown(&mut tasks);
-    let shut: Vec<_> = journal
-        .borrow()
-        .iter()
-        .filter(|(_, what, _)| *what == "shutdown")
-        .map(|(n, _, _)| *n)
+    let shut: Vec<_> = calls(&journal, "shutdown")
+        .into_iter()
+        .map(|(n, _)| n)
         .collect();
     assert_eq!(shut, ["fast", "slow", "odd"]);
     assert!(!exec.health().task(0).expect("task").running);
