@@ -42,6 +42,7 @@ fuzz_target!(|data: &[u8]| {
         key.clone(),
         GateConfig {
             vehicle_id: 7,
+            run_id: 0x1234_5678,
             task_count: 8,
         },
     );

@@ -227,6 +227,9 @@ pub struct LinkCounters {
     pub wrong_vehicle: u32,
     pub unsigned: u32,
     pub bad_signature: u32,
+    /// Authentic, but from another run of the vehicle (a recording replayed, or a ground
+    /// station that has not heard the vehicle since it restarted).
+    pub wrong_run: u32,
     /// Duplicate or too old for the sender's replay window.
     pub replayed: u32,
     /// A new sender when every replay window is taken.
@@ -241,7 +244,7 @@ pub struct LinkCounters {
 }
 
 /// Number of `u32` counters on the wire.
-pub const LINK_COUNTERS: usize = 14;
+pub const LINK_COUNTERS: usize = 15;
 
 impl LinkCounters {
     fn as_array(&self) -> [u32; LINK_COUNTERS] {
@@ -253,6 +256,7 @@ impl LinkCounters {
             self.wrong_vehicle,
             self.unsigned,
             self.bad_signature,
+            self.wrong_run,
             self.replayed,
             self.too_many_senders,
             self.out_of_range,
@@ -265,9 +269,21 @@ impl LinkCounters {
 
     /// Rejected commands of every kind.
     pub fn rejected(&self) -> u32 {
-        self.as_array()
-            .get(2..12)
-            .map_or(0, |r| r.iter().fold(0u32, |a, &b| a.saturating_add(b)))
+        [
+            self.bad_crc,
+            self.malformed,
+            self.wrong_vehicle,
+            self.unsigned,
+            self.bad_signature,
+            self.wrong_run,
+            self.replayed,
+            self.too_many_senders,
+            self.out_of_range,
+            self.unknown_param,
+            self.wrong_type,
+        ]
+        .iter()
+        .fold(0u32, |sum, &count| sum.saturating_add(count))
     }
 
     pub(crate) fn encode(&self, w: &mut Writer<'_>) -> Result<(), WireError> {
@@ -283,6 +299,7 @@ impl LinkCounters {
             wrong_vehicle: r.u32()?,
             unsigned: r.u32()?,
             bad_signature: r.u32()?,
+            wrong_run: r.u32()?,
             replayed: r.u32()?,
             too_many_senders: r.u32()?,
             out_of_range: r.u32()?,
@@ -300,6 +317,7 @@ impl LinkCounters {
             RejectReason::WrongVehicle => &mut self.wrong_vehicle,
             RejectReason::Unsigned => &mut self.unsigned,
             RejectReason::BadSignature => &mut self.bad_signature,
+            RejectReason::WrongRun => &mut self.wrong_run,
             RejectReason::Replayed => &mut self.replayed,
             RejectReason::TooManySenders => &mut self.too_many_senders,
             RejectReason::OutOfRange => &mut self.out_of_range,
@@ -319,6 +337,7 @@ pub enum RejectReason {
     WrongVehicle,
     Unsigned,
     BadSignature,
+    WrongRun,
     Replayed,
     TooManySenders,
     OutOfRange,
@@ -364,6 +383,8 @@ impl AcceptedCommand {
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct GateConfig {
     pub vehicle_id: u16,
+    /// This run's id (see [`Envelope::run_id`](super::frame::Envelope::run_id)).
+    pub run_id: u32,
     /// Tasks in the frame table: a telemetry rate for a task past these is out of range.
     pub task_count: usize,
 }
@@ -408,7 +429,7 @@ impl CommandGate {
     }
 
     /// Checks one received datagram, in order: CRC, framing, direction, vehicle id,
-    /// signature, replay, payload, ranges (and for parameter commands, the table). Counts
+    /// signature, run id, replay, payload, ranges (and for parameter commands, the table). Counts
     /// the outcome either way.
     pub fn accept(
         &mut self,
@@ -448,7 +469,10 @@ impl CommandGate {
         if !verify(&self.key, frame.signed_part, tag) {
             return Err(drop(RejectReason::BadSignature));
         }
-        // Authentic from here on: the sequence number is spent even if the payload turns
+        if envelope.run_id != self.config.run_id {
+            return Err(drop(RejectReason::WrongRun));
+        }
+        // Authentic and meant for this run from here on: the sequence number is spent even if the payload turns
         // out unusable, so the same datagram replayed counts as a replay.
         self.senders
             .accept(envelope.sender_id, envelope.sequence)

@@ -1,7 +1,7 @@
 //! The datagram around a message: header, payload, optional HMAC tag, CRC-32.
 //!
 //! ```text
-//! | header (24) | payload (payload_len) | tag (32, if signed) | CRC-32 (4) |
+//! | header (28) | payload (payload_len) | tag (32, if signed) | CRC-32 (4) |
 //!  \________ HMAC-SHA256 covers ______/
 //!  \_______________ CRC-32 covers ______________________________/
 //! ```
@@ -16,7 +16,7 @@ use super::wire::{Reader, WireError, Writer};
 
 pub const MAGIC: [u8; 4] = *b"SKYF";
 pub const VERSION: u8 = 1;
-pub const HEADER_LEN: usize = 24;
+pub const HEADER_LEN: usize = 28;
 pub const TAG_LEN: usize = 32;
 pub const CRC_LEN: usize = 4;
 /// The largest UDP payload that fits an Ethernet MTU of 1500 without IP fragmentation
@@ -40,6 +40,11 @@ pub struct Envelope {
     pub vehicle_id: u16,
     /// Who sent it: 0 is the vehicle, ground stations take 1..=255.
     pub sender_id: u8,
+    /// The vehicle's run: chosen by the vehicle at start, never repeated under one key,
+    /// sent in all its telemetry; a command must carry the vehicle's current one. It is
+    /// what stops a command recorded in one run being replayed in the next, when the
+    /// replay windows have started afresh.
+    pub run_id: u32,
     /// Per sender, +1 for each datagram. Signed commands must never reuse one under a key.
     pub sequence: u32,
     /// The sender's clock when the datagram was made.
@@ -149,6 +154,7 @@ pub fn encode_datagram(
     w.u16(envelope.vehicle_id)?;
     let payload_len_at = w.position();
     w.u16(0)?; // payload length, patched below
+    w.u32(envelope.run_id)?;
     w.u32(envelope.sequence)?;
     w.u64(envelope.t_ns)?;
     message.encode_payload(&mut w)?;
@@ -207,12 +213,14 @@ fn parse_header(bytes: &[u8]) -> Result<Header, WireError> {
     let sender_id = r.u8()?;
     let vehicle_id = r.u16()?;
     let payload_len = r.u16()?;
+    let run_id = r.u32()?;
     let sequence = r.u32()?;
     let t_ns = r.u64()?;
     Ok(Header {
         envelope: Envelope {
             vehicle_id,
             sender_id,
+            run_id,
             sequence,
             t_ns,
         },

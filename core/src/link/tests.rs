@@ -14,6 +14,7 @@ use std::vec::Vec as StdVec;
 const VEHICLE: u16 = 7;
 const GROUND: u8 = 1;
 const TASKS: usize = 8;
+const RUN: u32 = 0x1234_5678;
 
 fn hex(text: &str) -> StdVec<u8> {
     let text: StdVec<u8> = text.bytes().filter(u8::is_ascii_hexdigit).collect();
@@ -55,6 +56,7 @@ fn raw_datagram(
     d.push(envelope.sender_id);
     d.extend_from_slice(&envelope.vehicle_id.to_le_bytes());
     d.extend_from_slice(&(payload.len() as u16).to_le_bytes());
+    d.extend_from_slice(&envelope.run_id.to_le_bytes());
     d.extend_from_slice(&envelope.sequence.to_le_bytes());
     d.extend_from_slice(&envelope.t_ns.to_le_bytes());
     d.extend_from_slice(payload);
@@ -77,26 +79,27 @@ fn with_crc_fixed(mut d: StdVec<u8>) -> StdVec<u8> {
 // Worked examples (docs/link-protocol.md, "Worked examples"): checked byte for byte.
 
 const EXAMPLE_TASK_DATA: &str = "
-    534b5946 01 00 01 00 0700 1200 01000000 00ca9a3b00000000
+    534b5946 01 00 01 00 0700 1200 78563412 01000000 00ca9a3b00000000
     00 01 03 04 0000803e 04 0000c0bf 02 fdffffff
-    fb89130d";
+    46855e47";
 
 const EXAMPLE_SET_PARAM: &str = "
-    534b5946 01 01 83 01 0700 0f00 2a000000 00f2052a01000000
+    534b5946 01 01 83 01 0700 0f00 78563412 2a000000 00f2052a01000000
     09 726f6c6c5f6761696e 04 0000c03f
-    5fd1cccbdf38847986e3ba1818bf4cd3179b5acd0b5e210ddc86603e80ef1d3a
-    50db1a3f";
+    014819f17a0b9446e9c89481dd57d804897b4e7090f57be7e618e38283779906
+    abed5c8c";
 
 const EXAMPLE_ACK: &str = "
-    534b5946 01 00 06 00 0700 0c00 02000000 80889e2a01000000
+    534b5946 01 00 06 00 0700 0c00 78563412 02000000 80889e2a01000000
     01 2a000000 83 00 04 0000c03f
-    e3cab0b1";
+    54a7dfb4";
 
 fn example_task_data() -> (Envelope, Message) {
     (
         Envelope {
             vehicle_id: VEHICLE,
             sender_id: 0,
+            run_id: RUN,
             sequence: 1,
             t_ns: 1_000_000_000,
         },
@@ -118,6 +121,7 @@ fn example_set_param() -> (Envelope, Message) {
         Envelope {
             vehicle_id: VEHICLE,
             sender_id: GROUND,
+            run_id: RUN,
             sequence: 42,
             t_ns: 5_000_000_000,
         },
@@ -133,6 +137,7 @@ fn example_ack() -> (Envelope, Message) {
         Envelope {
             vehicle_id: VEHICLE,
             sender_id: 0,
+            run_id: RUN,
             sequence: 2,
             t_ns: 5_010_000_000,
         },
@@ -299,7 +304,7 @@ fn any_executive_status() -> impl Strategy<Value = ExecutiveStatus> {
         any::<u8>(),
         any::<u32>(),
         any::<[u64; 7]>(),
-        any::<[u32; 14]>(),
+        any::<[u32; 15]>(),
     )
         .prop_map(
             |(times, mode, task_count, health_period_ms, f, l)| ExecutiveStatus {
@@ -325,13 +330,14 @@ fn any_executive_status() -> impl Strategy<Value = ExecutiveStatus> {
                     wrong_vehicle: l[4],
                     unsigned: l[5],
                     bad_signature: l[6],
-                    replayed: l[7],
-                    too_many_senders: l[8],
-                    out_of_range: l[9],
-                    unknown_param: l[10],
-                    wrong_type: l[11],
-                    telemetry_sent: l[12],
-                    telemetry_send_failed: l[13],
+                    wrong_run: l[7],
+                    replayed: l[8],
+                    too_many_senders: l[9],
+                    out_of_range: l[10],
+                    unknown_param: l[11],
+                    wrong_type: l[12],
+                    telemetry_sent: l[13],
+                    telemetry_send_failed: l[14],
                 },
             },
         )
@@ -426,10 +432,11 @@ fn any_message() -> impl Strategy<Value = Message> {
 }
 
 fn any_envelope() -> impl Strategy<Value = Envelope> {
-    (any::<u16>(), any::<u8>(), any::<u32>(), any::<u64>()).prop_map(
-        |(vehicle_id, sender_id, sequence, t_ns)| Envelope {
+    (any::<u16>(), any::<u8>(), any::<[u32; 2]>(), any::<u64>()).prop_map(
+        |(vehicle_id, sender_id, [run_id, sequence], t_ns)| Envelope {
             vehicle_id,
             sender_id,
+            run_id,
             sequence,
             t_ns,
         },
@@ -481,7 +488,7 @@ proptest! {
         payload in proptest::collection::vec(any::<u8>(), 0..64),
     ) {
         let key = example_key();
-        let e = Envelope { vehicle_id: VEHICLE, sender_id: GROUND, sequence: 1, t_ns: 0 };
+        let e = Envelope { vehicle_id: VEHICLE, sender_id: GROUND, run_id: RUN, sequence: 1, t_ns: 0 };
         let d = raw_datagram(message_type, 1, &e, &payload, Some(&key));
         let _ = decode_datagram(&d, Verify::Required(&key));
         let mut gate = gate();
@@ -503,7 +510,7 @@ proptest! {
         flip in 1u8..=255,
     ) {
         let key = example_key();
-        let e = Envelope { vehicle_id: VEHICLE, sender_id: GROUND, sequence: 5, t_ns: 0 };
+        let e = Envelope { vehicle_id: VEHICLE, sender_id: GROUND, run_id: RUN, sequence: 5, t_ns: 0 };
         let mut d = encode(&e, &Message::Command(command), Some(&key));
         let i = position.index(d.len());
         d[i] ^= flip;
@@ -604,6 +611,7 @@ fn gate() -> CommandGate {
         example_key(),
         GateConfig {
             vehicle_id: VEHICLE,
+            run_id: RUN,
             task_count: TASKS,
         },
     )
@@ -617,6 +625,7 @@ fn command_from(sender_id: u8, sequence: u32, command: Command) -> StdVec<u8> {
     let e = Envelope {
         vehicle_id: VEHICLE,
         sender_id,
+        run_id: RUN,
         sequence,
         t_ns: 1_000,
     };
@@ -653,6 +662,7 @@ fn expect_counters(reason: RejectReason, accepted: u32) -> LinkCounters {
         RejectReason::WrongVehicle => &mut c.wrong_vehicle,
         RejectReason::Unsigned => &mut c.unsigned,
         RejectReason::BadSignature => &mut c.bad_signature,
+        RejectReason::WrongRun => &mut c.wrong_run,
         RejectReason::Replayed => &mut c.replayed,
         RejectReason::TooManySenders => &mut c.too_many_senders,
         RejectReason::OutOfRange => &mut c.out_of_range,
@@ -754,6 +764,7 @@ fn rejects_malformed_datagrams() {
     let e = Envelope {
         vehicle_id: VEHICLE,
         sender_id: GROUND,
+        run_id: RUN,
         sequence: 1,
         t_ns: 0,
     };
@@ -800,6 +811,7 @@ fn rejects_another_vehicles_commands() {
     let e = Envelope {
         vehicle_id: VEHICLE + 1,
         sender_id: GROUND,
+        run_id: RUN,
         sequence: 1,
         t_ns: 0,
     };
@@ -812,6 +824,7 @@ fn rejects_unsigned_commands() {
     let e = Envelope {
         vehicle_id: VEHICLE,
         sender_id: GROUND,
+        run_id: RUN,
         sequence: 1,
         t_ns: 0,
     };
@@ -824,17 +837,18 @@ fn rejects_commands_signed_with_another_key() {
     let e = Envelope {
         vehicle_id: VEHICLE,
         sender_id: GROUND,
+        run_id: RUN,
         sequence: 1,
         t_ns: 0,
     };
     let other = LinkKey::new([0x55; 32]);
     let d = encode(&e, &Message::Command(Command::Stop), Some(&other));
     assert_rejected(&[d], RejectReason::BadSignature);
-    // A correct tag moved onto another header (vehicle id 7 → sequence changed).
+    // A correct tag on a changed header (sequence number 1 → 2, CRC recomputed).
     let mut d = command(1, Command::Stop);
-    d[12] = 2;
+    d[16] = 2;
     assert_rejected(&[with_crc_fixed(d)], RejectReason::BadSignature);
-    // A forged sequence number spends nothing: the real datagram is still accepted.
+    // A forgery claiming sequence 9 spends nothing: the real 9 is still accepted.
     let (last, counters) = run(&[
         with_crc_fixed({
             let mut d = command(9, Command::Stop);
@@ -845,6 +859,25 @@ fn rejects_commands_signed_with_another_key() {
     ]);
     assert!(last.is_ok());
     assert_eq!((counters.bad_signature, counters.accepted), (1, 1));
+}
+
+#[test]
+fn rejects_commands_from_another_run() {
+    // Authentic, fresh sequence number, but recorded in the vehicle's previous run.
+    let e = Envelope {
+        vehicle_id: VEHICLE,
+        sender_id: GROUND,
+        run_id: RUN - 1,
+        sequence: 1,
+        t_ns: 0,
+    };
+    let d = encode(&e, &Message::Command(Command::Stop), Some(&example_key()));
+    assert_rejected(&[d], RejectReason::WrongRun);
+    // It spends nothing: this run's sequence 1 is still accepted afterwards.
+    let stale = encode(&e, &Message::Command(Command::Stop), Some(&example_key()));
+    let (last, counters) = run(&[stale, command(1, Command::Stop)]);
+    assert!(last.is_ok());
+    assert_eq!((counters.wrong_run, counters.accepted), (1, 1));
 }
 
 #[test]
@@ -861,6 +894,7 @@ fn rejects_replays() {
     let e = Envelope {
         vehicle_id: VEHICLE,
         sender_id: GROUND,
+        run_id: RUN,
         sequence: 3,
         t_ns: 0,
     };
@@ -981,6 +1015,7 @@ fn unauthenticated_rejections_get_no_ack() {
     let e = Envelope {
         vehicle_id: VEHICLE,
         sender_id: GROUND,
+        run_id: RUN,
         sequence: 1,
         t_ns: 0,
     };
