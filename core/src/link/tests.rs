@@ -1130,3 +1130,68 @@ fn task_status_takes_the_health_boards_fields() {
     assert_eq!((s.releases, s.resets, s.overruns_frame), (10, 2, 3));
     assert_eq!((s.exec_mean_ns, s.exec_max_ns), (200, 300));
 }
+
+#[test]
+fn payload_sizes_match_the_spec_table() {
+    fn payload_len(message: Message) -> usize {
+        encode(&Envelope::default(), &message, None).len() - HEADER_LEN - CRC_LEN
+    }
+    let long_name = name(&"n".repeat(MAX_NAME_LEN));
+    let t = |m| payload_len(Message::Telemetry(m));
+    let c = |m| payload_len(Message::Command(m));
+    assert_eq!(
+        t(Telemetry::ExecutiveStatus(ExecutiveStatus::default())),
+        138
+    );
+    assert_eq!(
+        t(Telemetry::TaskStatus(TaskStatus {
+            name: long_name,
+            ..TaskStatus::default()
+        })),
+        115
+    );
+    assert_eq!(
+        t(Telemetry::ParamValue(ParamValue {
+            index: 0,
+            count: 1,
+            name: long_name,
+            value: Value::F64(0.0),
+            min: Value::F64(0.0),
+            max: Value::F64(0.0),
+        })),
+        64
+    );
+    assert_eq!(
+        c(Command::SetParam {
+            name: long_name,
+            value: Value::F64(0.0)
+        }),
+        42
+    );
+    assert_eq!(c(Command::GetParam { name: long_name }), 33);
+    assert_eq!(
+        c(Command::SetTelemetryRate {
+            task_index: 0,
+            interval_ms: 0
+        }),
+        5
+    );
+    assert_eq!(c(Command::SetHealthPeriod { period_ms: 0 }), 4);
+    assert_eq!(
+        c(Command::RequestMode {
+            mode: FlightMode::Manual
+        }),
+        1
+    );
+    assert_eq!(
+        c(Command::HorizonAttitude(HorizonAttitude {
+            roll_rad: 0.0,
+            pitch_rad: 0.0,
+            confidence: 0.0,
+            capture_t_ns: 0
+        })),
+        20
+    );
+    assert_eq!(c(Command::ListParams) + c(Command::Stop), 0);
+    assert_eq!(frame::MAX_PAYLOAD_LEN, 1408);
+}
