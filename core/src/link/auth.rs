@@ -161,6 +161,7 @@ pub const MAX_SENDERS: usize = 8;
 /// Replay windows of up to [`MAX_SENDERS`] senders. A sender gets a window at its first
 /// authenticated datagram, so strangers cannot fill the table.
 #[derive(Clone, Debug, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct ReplayGuard {
     senders: [Option<(u8, ReplayWindow)>; MAX_SENDERS],
 }
@@ -390,6 +391,8 @@ pub struct GateConfig {
 }
 
 /// Every command datagram goes through here; nothing it rejects reaches the vehicle.
+#[derive(Debug)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct CommandGate {
     key: LinkKey,
     config: GateConfig,

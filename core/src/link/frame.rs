@@ -97,6 +97,7 @@ pub enum FrameError {
 
 /// The pieces of a datagram whose CRC and lengths have been checked.
 #[derive(Clone, Copy, Debug)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Frame<'a> {
     pub header: Header,
     pub payload: &'a [u8],
@@ -232,6 +233,7 @@ fn parse_header(bytes: &[u8]) -> Result<Header, WireError> {
 
 /// Whether and how to check the tag when decoding.
 #[derive(Clone, Copy, Debug)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Verify<'k> {
     /// Ignore any tag (e.g. a ground station without the key, showing telemetry).
     No,

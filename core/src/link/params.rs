@@ -73,6 +73,7 @@ impl SetParamResult {
 }
 
 #[derive(Clone, Debug, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct ParamTable {
     params: Vec<Param, MAX_PARAMS>,
     /// Bit per index: changed since the last [`ParamTable::take_changed`].
