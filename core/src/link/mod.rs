@@ -8,12 +8,14 @@
 //! - [`frame`]: header, CRC-32, signing and the datagram as a whole;
 //! - [`messages`]: the typed messages in both directions;
 //! - [`params`]: the table of parameters the ground can read and set;
-//! - [`auth`]: keys, tags, replay windows and the [`CommandGate`].
+//! - [`auth`]: keys, tags, replay windows and the [`CommandGate`];
+//! - [`telemetry`]: when the vehicle sends what, and its datagrams' envelopes.
 
 pub mod auth;
 pub mod frame;
 pub mod messages;
 pub mod params;
+pub mod telemetry;
 pub mod wire;
 
 pub use auth::{
@@ -25,6 +27,7 @@ pub use frame::{
 };
 pub use messages::{Command, Message, Telemetry, Value};
 pub use params::{ParamTable, SetParamResult};
+pub use telemetry::{Due, TelemetrySchedule, VehicleEnvelopes};
 
 #[cfg(test)]
 mod tests;
