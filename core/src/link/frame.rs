@@ -178,7 +178,7 @@ pub fn parse_frame(datagram: &[u8]) -> Result<Frame<'_>, FrameError> {
         return Err(FrameError::Malformed);
     }
     let (covered, crc) = datagram
-        .split_at_checked(datagram.len() - CRC_LEN)
+        .split_at_checked(datagram.len().saturating_sub(CRC_LEN))
         .ok_or(FrameError::Malformed)?;
     let crc = Reader::new(crc).u32().map_err(|_| FrameError::Malformed)?;
     if crc32(covered) != crc {
@@ -190,7 +190,7 @@ pub fn parse_frame(datagram: &[u8]) -> Result<Frame<'_>, FrameError> {
         return Err(FrameError::Malformed);
     }
     let (signed_part, tag) = covered
-        .split_at_checked(covered.len() - tag_len)
+        .split_at_checked(covered.len().saturating_sub(tag_len))
         .ok_or(FrameError::Malformed)?;
     let payload = signed_part.get(HEADER_LEN..).ok_or(FrameError::Malformed)?;
     Ok(Frame {
