@@ -8,6 +8,7 @@
 //!   keeps health and emits one timing record per frame;
 //! - [`comm`]: the lock-free ways tasks hand data to each other and to the shell;
 //! - [`logfmt`]: the binary flight log: encoding records, reading and printing them.
+//! - [`link`]: the vehicle–ground protocol: messages, encoding, command authentication.
 //!
 //! The OS side (threads, files, sockets, timers) lives in `skyframe-shell` and the
 //! `platform-*` crates, behind the traits in [`executive::clock`] and [`comm`].
@@ -20,6 +21,7 @@ extern crate std;
 pub mod facade;
 pub mod comm;
 pub mod executive;
+pub mod link;
 pub mod logfmt;
 pub mod schedule;
 pub mod tasks;
