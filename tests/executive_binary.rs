@@ -114,10 +114,58 @@ fn check_schedule_exits_1_on_infeasible_and_2_on_unreadable_files() {
     assert_eq!(out.status.code(), Some(2));
 }
 
+/// The run's timing log (`executive.bin`) through `skyframe-log to-csv`: one row per frame,
+/// by frame number, as the named columns.
+fn timing_rows(
+    summary: &Value,
+) -> std::collections::BTreeMap<u64, std::collections::HashMap<String, u64>> {
+    let log = summary["log_files"]
+        .as_array()
+        .and_then(|f| {
+            f.iter()
+                .filter_map(Value::as_str)
+                .find(|f| f.ends_with("/executive.bin"))
+        })
+        .expect("executive log")
+        .to_string();
+    let out_dir = std::path::Path::new(&log).with_file_name("csv");
+    let run = Command::new(skyframe_tests::binary("skyframe-log", "skyframe-log"))
+        .args(["to-csv", &log, "--out-dir"])
+        .arg(&out_dir)
+        .output()
+        .expect("skyframe-log runs");
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let csv = std::fs::read_to_string(out_dir.join("executive.1.csv")).expect("csv");
+    let columns: Vec<String> = csv
+        .lines()
+        .find_map(|l| l.strip_prefix("% time,"))
+        .expect("column comment")
+        .split(',')
+        .map(str::to_string)
+        .collect();
+    csv.lines()
+        .filter(|l| !l.starts_with('%'))
+        .map(|line| {
+            let row: std::collections::HashMap<String, u64> = columns
+                .iter()
+                .zip(line.split(',').skip(1))
+                .map(|(c, v)| (c.clone(), v.parse().unwrap_or(u64::MAX)))
+                .collect();
+            (row["frame"], row)
+        })
+        .collect()
+}
+
 #[test]
 fn injected_overruns_are_detected_on_the_real_clock_and_policies_apply() {
     // imu (budget 300 us, policy reset) gets 3 ms extra in frames 10..20; estimator (log)
-    // 12 ms extra in frames 50..52, which runs frames 50 and 51 into the next frame.
+    // 12 ms extra in frames 50..52, which runs frames 50 and 51 into the next frame. The
+    // timing log says exactly what happened in those frames; elsewhere a loaded test machine
+    // may add overruns of its own, so totals are only bounded below.
     let s = sim_json(
         "injected_overruns_are_detected_on_the_real_clock_and_policies_apply",
         "1",
@@ -128,24 +176,57 @@ fn injected_overruns_are_detected_on_the_real_clock_and_policies_apply() {
             "estimator:12000@50..52",
         ],
     );
-    let imu = task(&s, "imu");
-    assert_eq!(imu["overruns_budget"], 10);
-    assert_eq!(
-        imu["resets"], 10,
-        "reset policy: recover + init before each next release"
+    const IMU: u64 = 1 << 0;
+    const ESTIMATOR: u64 = 1 << 1;
+    let rows = timing_rows(&s);
+    for frame in 10..20 {
+        let r = &rows[&frame];
+        assert_ne!(
+            r["over_budget_mask"] & IMU,
+            0,
+            "frame {frame}: imu over budget"
+        );
+        assert!(r["exec_ns_imu"] >= 3_000_000, "frame {frame}");
+        assert_ne!(
+            rows[&(frame + 1)]["reset_mask"] & IMU,
+            0,
+            "frame {}: reset policy",
+            frame + 1
+        );
+    }
+    for frame in [50, 51] {
+        let r = &rows[&frame];
+        assert_ne!(r["over_budget_mask"] & ESTIMATOR, 0, "frame {frame}");
+        assert_ne!(
+            r["over_frame_mask"] & ESTIMATOR,
+            0,
+            "frame {frame}: ran into the next frame"
+        );
+        assert!(r["start_latency_ns"] < 10_000_000 || frame == 50);
+    }
+    assert!(
+        rows[&51]["start_latency_ns"] >= 2_000_000,
+        "frame 51 starts late behind frame 50"
     );
-    assert!(imu["exec_max_us"].as_f64().unwrap_or(0.0) >= 3000.0);
+    assert!(
+        rows.values().all(|r| r["reset_mask"] & ESTIMATOR == 0),
+        "log policy never resets"
+    );
+
+    let imu = task(&s, "imu");
+    assert!(imu["overruns_budget"].as_u64().unwrap_or(0) >= 10, "{s}");
+    assert!(imu["resets"].as_u64().unwrap_or(0) >= 10, "{s}");
     let estimator = task(&s, "estimator");
-    assert_eq!(estimator["overruns_budget"], 2);
-    assert_eq!(estimator["overruns_frame"], 2);
+    assert!(
+        estimator["overruns_frame"].as_u64().unwrap_or(0) >= 2,
+        "{s}"
+    );
     assert_eq!(estimator["resets"], 0, "log policy only counts");
-    assert_eq!(s["frames_overrun"], 2);
-    assert!(s["frames_late"].as_u64().unwrap_or(0) >= 2, "{s}");
+    assert!(s["frames_overrun"].as_u64().unwrap_or(0) >= 2, "{s}");
     assert!(
         s["max_start_latency_us"].as_f64().unwrap_or(0.0) >= 2000.0,
         "{s}"
     );
-    assert_eq!(task(&s, "gps")["overruns_budget"], 0);
 }
 
 #[test]
@@ -162,7 +243,10 @@ fn a_long_stall_misses_whole_frames_and_counts_their_releases() {
         task(&s, "imu")["overruns_missed"].as_u64().unwrap_or(0) >= 2,
         "{s}"
     );
-    assert_eq!(task(&s, "imu")["overruns_frame"], 1, "{s}");
+    assert!(
+        task(&s, "imu")["overruns_frame"].as_u64().unwrap_or(0) >= 1,
+        "{s}"
+    );
     let frames = s["frames"].as_u64().unwrap_or(0) + s["frames_missed"].as_u64().unwrap_or(0);
     assert!(
         (100..=101).contains(&frames),
@@ -228,8 +312,13 @@ fn watchdog_counts_a_task_whose_releases_are_all_skipped() {
     );
     assert_eq!(s["watchdog_checks"], 10, "{s}");
     let logging = task(&s, "logging");
-    assert_eq!(logging["skipped"], 20, "{s}");
-    assert_eq!(logging["overruns_budget"], 20, "{s}");
+    // 40 releases in frames 20..60, each over budget when it runs, each skipping the next:
+    // 20 run and 20 are skipped (a loaded machine may add overruns elsewhere).
+    assert!(logging["skipped"].as_u64().unwrap_or(0) >= 20, "{s}");
+    assert!(
+        logging["overruns_budget"].as_u64().unwrap_or(0) >= 20,
+        "{s}"
+    );
     assert!(
         s["tasks"]
             .as_array()
