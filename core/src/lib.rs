@@ -6,7 +6,9 @@
 //! - [`schedule`]: the frame table, built at compile time from `schedule.toml`;
 //! - [`executive`]: steps the tasks frame by frame, measures them, applies overrun policies,
 //!   keeps health and emits one timing record per frame;
-//! - [`comm`]: the lock-free ways tasks hand data to each other and to the shell.
+//! - [`comm`]: the lock-free ways tasks hand data to each other and to the shell;
+//! - [`devices`]: the GPS, IMU and servo board wire protocols, bytes to SI-unit frames and
+//!   back.
 //!
 //! The OS side (threads, files, sockets, timers) lives in `skyframe-shell` and the
 //! `platform-*` crates, behind the traits in [`executive::clock`] and [`comm`].
@@ -18,5 +20,6 @@ extern crate std;
 #[macro_use]
 pub mod facade;
 pub mod comm;
+pub mod devices;
 pub mod executive;
 pub mod schedule;
