@@ -129,7 +129,7 @@ impl ImuSlowRecord {
         let mut bytes = [0u8; SLOW_RECORD_LEN];
         let mut fields = bytes.iter_mut();
         let mut put = |field: &[u8]| {
-            for (slot, &byte) in fields.by_ref().zip(field) {
+            for (&byte, slot) in field.iter().zip(fields.by_ref()) {
                 *slot = byte;
             }
         };
@@ -209,7 +209,7 @@ pub fn encode_imu_frame(
     let mut payload = [0u8; IMU_PAYLOAD_LEN];
     let mut fields = payload.iter_mut();
     let mut put = |field: &[u8]| {
-        for (slot, &byte) in fields.by_ref().zip(field) {
+        for (&byte, slot) in field.iter().zip(fields.by_ref()) {
             *slot = byte;
         }
     };
