@@ -51,6 +51,7 @@ pub fn encode_frame(frame_type: u8, counter: u8, payload: &[u8], out: &mut [u8])
 
 /// What [`FrameAssembler`] hands on: a frame whose envelope and CRC checked out.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct CheckedFrame<'a> {
     pub counter: u8,
     pub payload: &'a [u8],

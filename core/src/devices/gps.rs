@@ -322,6 +322,9 @@ impl Default for GpsConfig {
 }
 
 /// Decodes a GPS receiver's byte stream into [`GpsFix`]es.
+///
+/// Staleness means the receiver is silent or garbled: a receiver without a fix still sends
+/// good sentences and is not stale; [`GpsFix::valid`] says whether it has a fix.
 #[derive(Clone, Debug)]
 pub struct NmeaDecoder {
     config: GpsConfig,

@@ -39,7 +39,8 @@ pub struct DecoderStats {
     /// [`gps::MAX_SENTENCE_LEN`], a binary length byte over [`framing::MAX_PAYLOAD_LEN`]).
     pub overflows: u32,
     /// Bytes thrown away while hunting for the next frame start, including the bytes of
-    /// rejected frames.
+    /// frames rejected for framing, overflow or checksum (not those of `invalid_payload` or
+    /// `ignored` frames, which were framed correctly).
     pub bytes_discarded: u32,
     /// Frames with a good checksum whose contents make no sense (a latitude of 97°, a slow
     /// record slot past the end). Their values are not used.
