@@ -6,7 +6,10 @@ use libfuzzer_sys::fuzz_target;
 use skyframe_core::devices::gps::{GpsConfig, NmeaDecoder, SentenceKind};
 
 fuzz_target!(|data: &[u8]| {
-    let fixes = common::whole_and_chunked(NmeaDecoder::default, data);
+    let Some((&seed, stream)) = data.split_first() else {
+        return;
+    };
+    let fixes = common::whole_and_chunked(NmeaDecoder::default, seed, stream);
     for fix in &fixes {
         assert!(fix.velocity_ned_mps.iter().flatten().all(|v| v.is_finite()));
     }
@@ -15,6 +18,6 @@ fuzz_target!(|data: &[u8]| {
         epoch_end: Some(SentenceKind::Rmc),
         ..GpsConfig::default()
     });
-    decoder.push(data, 0, |_| {});
+    decoder.push(stream, 0, |_| {});
     decoder.flush(|_| {});
 });

@@ -586,9 +586,12 @@ impl<'a> Fields<'a> {
         let Some(rest) = self.rest else {
             return &[];
         };
-        match rest.iter().position(|&b| b == b',') {
-            Some(comma) => {
-                let (field, tail) = rest.split_at(comma);
+        let split = rest
+            .iter()
+            .position(|&b| b == b',')
+            .and_then(|comma| rest.split_at_checked(comma));
+        match split {
+            Some((field, tail)) => {
                 self.rest = tail.get(1..);
                 field
             }

@@ -16,6 +16,19 @@
 //! [`DecoderStats`] rather than reported as an error, because a flight task can do nothing
 //! with a single bad frame except count it. The byte layouts are in `docs/protocols.md`.
 
+// Flight code must not be able to panic on any input: enforced here, relaxed for tests.
+#![cfg_attr(
+    not(test),
+    deny(
+        clippy::indexing_slicing,
+        clippy::unwrap_used,
+        clippy::expect_used,
+        clippy::panic,
+        clippy::unreachable,
+        clippy::todo
+    )
+)]
+
 pub mod framing;
 pub mod gps;
 pub mod imu;
