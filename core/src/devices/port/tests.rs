@@ -151,3 +151,45 @@ fn writer_refuses_frames_longer_than_a_frame() {
     assert_eq!(writer.stats().frames_rejected, 1);
     assert!(writer.is_idle());
 }
+
+#[test]
+fn a_byte_at_a_time_uart_gives_the_same_gps_fixes() {
+    use crate::devices::gps::{
+        GpsConfig, GpsFix, NmeaDecoder, SentenceKind, Talker, encode_sentence,
+    };
+    let fix = GpsFix {
+        utc_time_ms: Some(1_000),
+        valid: true,
+        latitude_deg: Some(47.3),
+        longitude_deg: Some(8.5),
+        ..GpsFix::default()
+    };
+    let mut bytes = Vec::new();
+    for kind in [SentenceKind::Gga, SentenceKind::Rmc] {
+        let mut out = [0u8; 140];
+        let len = encode_sentence(kind, Talker::Gp, &fix, &mut out).expect("fits");
+        bytes.extend_from_slice(&out[..len]);
+    }
+    let config = GpsConfig {
+        epoch_end: Some(SentenceKind::Rmc),
+        ..GpsConfig::default()
+    };
+    let mut port = MockPort {
+        received: bytes.clone().into(),
+        read_limit: 1,
+        ..MockPort::default()
+    };
+    let mut decoder = NmeaDecoder::new(config);
+    let mut fixes = Vec::new();
+    // A task's frame budget of 16 bytes per call, as on a slow microcontroller.
+    while !port.received.is_empty() {
+        drain(&mut port, &mut decoder, 0, 16, &mut |f| fixes.push(f)).expect("ok");
+    }
+    assert_eq!(port.reads, bytes.len());
+    assert_eq!(
+        fixes,
+        decode_whole(&mut NmeaDecoder::new(config), &bytes, 0)
+    );
+    assert_eq!(fixes.len(), 1);
+    assert!(fixes[0].valid);
+}
