@@ -628,3 +628,34 @@ proptest! {
         prop_assert_eq!(fixes[0].utc_time_ms, Some(ms / 10 * 10));
     }
 }
+
+/// A rough comparison on the same bytes, for the benchmark issue to replace:
+/// `cargo test -p skyframe-core --release -- --ignored --nocapture throughput`.
+/// The nmea crate gets pre-split lines (no framing work); ours does line assembly too.
+#[test]
+#[ignore = "timing, not correctness"]
+fn throughput_against_the_nmea_crate() {
+    let text = [GGA, RMC, VTG, GSA, GST].concat().repeat(2_000);
+    let start = std::time::Instant::now();
+    let mut decoder = NmeaDecoder::default();
+    let mut fixes = 0usize;
+    decoder.push(text.as_bytes(), 0, |_| fixes += 1);
+    let ours = start.elapsed();
+    assert_eq!(decoder.stats().frames, 10_000);
+
+    let start = std::time::Instant::now();
+    let mut parsed = 0usize;
+    for line in text.lines() {
+        if nmea::parse_str(line).is_ok() {
+            parsed += 1;
+        }
+    }
+    let theirs = start.elapsed();
+    assert_eq!(parsed, 10_000);
+    let mb = text.len() as f64 / 1e6;
+    std::println!(
+        "ours: {:.1} MB/s ({fixes} fixes), nmea crate: {:.1} MB/s",
+        mb / ours.as_secs_f64(),
+        mb / theirs.as_secs_f64()
+    );
+}
