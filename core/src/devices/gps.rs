@@ -114,7 +114,8 @@ impl FixQuality {
         }
     }
 
-    fn gga_code(self) -> u8 {
+    /// The GGA fix-quality digit (logs carry it as a number).
+    pub fn gga_code(self) -> u8 {
         match self {
             Self::NoFix => 0,
             Self::Autonomous => 1,
