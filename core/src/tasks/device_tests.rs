@@ -193,14 +193,16 @@ fn imu_task_reports_a_silent_device_stale() {
     let clock = SetClock(Cell::new(0));
     let mut imu = ImuTask::new(Shared(&port), Capture(&log), 50 * MS, &samples);
     let mut exec = Executive::new(&EVERY_FRAME, &clock);
-    let mut tasks: [&mut dyn Task; 1] = [&mut imu];
-    exec.start(&mut tasks, 0).expect("start");
-    port.borrow_mut().received.extend(imu_frame(0, 0.0));
-    run_frames(&mut exec, &clock, &mut tasks, 3);
-    let fresh_at = clock.0.get();
-    run_frames(&mut exec, &clock, &mut tasks, 10);
-    exec.shutdown(&mut tasks);
-    drop(tasks);
+    let fresh_at;
+    {
+        let mut tasks: [&mut dyn Task; 1] = [&mut imu];
+        exec.start(&mut tasks, 0).expect("start");
+        port.borrow_mut().received.extend(imu_frame(0, 0.0));
+        run_frames(&mut exec, &clock, &mut tasks, 3);
+        fresh_at = clock.0.get();
+        run_frames(&mut exec, &clock, &mut tasks, 10);
+        exec.shutdown(&mut tasks);
+    }
     assert!(!imu.is_stale(fresh_at));
     assert!(imu.is_stale(clock.0.get()));
     let (rows, _) = logged(&log.borrow());
