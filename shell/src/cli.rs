@@ -5,13 +5,14 @@
 
 use crate::bench;
 use crate::check_schedule::check_file;
-use crate::flight::{fly_idle, render_flight};
+use crate::flight::{Devices, FlightPlan, fly, render_flight};
 use crate::host::{RunOptions, TimerCheckConfig, stop_on_signals};
 use crate::platform::{Platform, RtConfig};
+use crate::vehicle::VehicleConfig;
 use clap::{Args, Parser, Subcommand};
 use skyframe_core::executive::{FaultPlan, OverrunInjection};
 use skyframe_core::schedule::{FrameTable, SHIPPED};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
@@ -38,6 +39,8 @@ pub struct Cli {
 pub enum Command {
     /// Fly the simulated airplane (until the simulator lands: the executive with idle tasks).
     Sim(SimArgs),
+    /// Fly the real airplane: devices on the serial ports `--vehicle` names.
+    Run(RunArgs),
     /// Validate a schedule file and print its frame table, load and slack.
     CheckSchedule {
         /// The schedule to check.
@@ -77,11 +80,12 @@ impl RealtimeArgs {
     }
 }
 
+/// What every flight takes (`sim` and `run`).
 #[derive(Args, Debug)]
-pub struct SimArgs {
+pub struct FlightArgs {
     /// How long to fly, in seconds.
-    #[arg(long, default_value_t = 10.0, value_parser = parse_seconds)]
-    pub duration: f64,
+    #[arg(long, value_parser = parse_seconds)]
+    pub duration: Option<f64>,
     /// Make a task overrun on purpose: TASK:EXTRA_US@FROM..TO (minor frames since start),
     /// e.g. imu:12000@100..110. Repeatable.
     #[arg(long = "inject-overrun", value_name = "SPEC", value_parser = parse_injection)]
@@ -90,9 +94,9 @@ pub struct SimArgs {
     #[arg(long)]
     pub json: bool,
     /// Where flights are logged: each run writes into a new subdirectory named by its start
-    /// time (UTC).
-    #[arg(long, default_value = "flights")]
-    pub log_dir: PathBuf,
+    /// time (UTC). Default: `flights`, or `[log] dir` of the vehicle file.
+    #[arg(long)]
+    pub log_dir: Option<PathBuf>,
     /// Milliseconds of timer measurement before the first frame (0 skips the check).
     #[arg(long, default_value_t = 200)]
     pub timer_check_ms: u64,
@@ -102,6 +106,21 @@ pub struct SimArgs {
     pub refuse_late_timer: bool,
     #[command(flatten)]
     pub realtime: RealtimeArgs,
+}
+
+#[derive(Args, Debug)]
+pub struct SimArgs {
+    #[command(flatten)]
+    pub flight: FlightArgs,
+}
+
+#[derive(Args, Debug)]
+pub struct RunArgs {
+    /// The vehicle file: device ports and baud rates, log directory.
+    #[arg(long, value_name = "FILE")]
+    pub vehicle: PathBuf,
+    #[command(flatten)]
+    pub flight: FlightArgs,
 }
 
 #[derive(Args, Debug)]
@@ -238,36 +257,59 @@ fn run<P: Platform>(platform: &P, command: Command) -> Result<ExitCode, String> 
             Ok(ExitCode::SUCCESS)
         }
         Command::Sim(args) => {
-            let faults = fault_plan(&SHIPPED, &args.inject_overrun)?;
-            let stop = stop_flag()?;
             eprintln!(
                 "skyframe sim: the simulated airplane is not built yet (issue 5); flying the \
-                 executive with idle tasks for {} s",
-                args.duration
+                 executive with idle tasks"
             );
-            let report = fly_idle(
+            let mut flight = args.flight;
+            flight.duration = flight.duration.or(Some(10.0));
+            fly_and_report(platform, Devices::None, &flight, Path::new("flights"))
+        }
+        Command::Run(args) => {
+            let vehicle = VehicleConfig::load(&args.vehicle)?;
+            fly_and_report(
                 platform,
-                &SHIPPED,
-                &args.log_dir,
-                RunOptions {
-                    faults,
-                    realtime: args.realtime.config(),
-                    timer_check: TimerCheckConfig {
-                        duration: Duration::from_millis(args.timer_check_ms),
-                        refuse_if_over_margin: args.refuse_late_timer,
-                    },
-                    ..RunOptions::new(Some(Duration::from_secs_f64(args.duration)), &stop)
-                },
-            )?;
-            if args.json {
-                let json = serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?;
-                println!("{json}");
-            } else {
-                print!("{}", render_flight(&report));
-            }
-            Ok(ExitCode::SUCCESS)
+                Devices::Serial(&vehicle),
+                &args.flight,
+                &vehicle.log.dir,
+            )
         }
     }
+}
+
+/// Flies with `devices`, prints the report; the flight's own failures are exit 1.
+fn fly_and_report<P: Platform>(
+    platform: &P,
+    devices: Devices<'_>,
+    args: &FlightArgs,
+    default_log_dir: &Path,
+) -> Result<ExitCode, String> {
+    let faults = fault_plan(&SHIPPED, &args.inject_overrun)?;
+    let stop = stop_flag()?;
+    let report = fly(
+        platform,
+        &SHIPPED,
+        FlightPlan {
+            log_dir: args.log_dir.as_deref().unwrap_or(default_log_dir),
+            devices,
+            options: RunOptions {
+                faults,
+                realtime: args.realtime.config(),
+                timer_check: TimerCheckConfig {
+                    duration: Duration::from_millis(args.timer_check_ms),
+                    refuse_if_over_margin: args.refuse_late_timer,
+                },
+                ..RunOptions::new(args.duration.map(Duration::from_secs_f64), &stop)
+            },
+        },
+    )?;
+    if args.json {
+        let json = serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?;
+        println!("{json}");
+    } else {
+        print!("{}", render_flight(&report));
+    }
+    Ok(ExitCode::SUCCESS)
 }
 
 #[cfg(test)]
