@@ -538,3 +538,32 @@ fn a_run_logs_its_timing_records_readably_for_skyframe_log() {
     assert!(text.contains("closed cleanly: yes"), "{text}");
     assert!(text.contains("exec_ns_imu"), "{text}");
 }
+
+#[test]
+fn bench_parsers_measures_each_decoder_and_the_nmea_crate_on_the_same_bytes() {
+    let out = skyframe()
+        .args(["bench", "parsers", "--json", "--megabytes", "0.05"])
+        .output()
+        .expect("runs");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let b = json(&out.stdout);
+    for decoder in ["imu", "servo", "gps_all_sentences"] {
+        assert!(b[decoder]["mb_per_s"].as_f64().unwrap_or(0.0) > 0.0, "{b}");
+        assert!(b[decoder]["frames"].as_u64().unwrap_or(0) > 0, "{b}");
+    }
+    let g = &b["gga_rmc"];
+    assert!(
+        g["ours_mb_per_s"].as_f64().unwrap_or(0.0) > 0.0
+            && g["nmea_crate_mb_per_s"].as_f64().unwrap_or(0.0) > 0.0,
+        "{b}"
+    );
+    assert_eq!(
+        g["sentences"].as_u64().unwrap_or(0) % 2,
+        0,
+        "GGA and RMC in pairs: {b}"
+    );
+}

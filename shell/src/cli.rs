@@ -123,8 +123,25 @@ pub struct RunArgs {
     pub flight: FlightArgs,
 }
 
+#[derive(Subcommand, Debug)]
+pub enum BenchWhat {
+    /// Decoder throughput (MB/s) of the IMU, servo and GPS protocols, and the `nmea` crate's
+    /// on the same GGA/RMC bytes.
+    Parsers {
+        /// Print one JSON object.
+        #[arg(long)]
+        json: bool,
+        /// Size of each test stream, in megabytes.
+        #[arg(long, default_value_t = 5.0, value_parser = parse_seconds)]
+        megabytes: f64,
+    },
+}
+
 #[derive(Args, Debug)]
+#[command(args_conflicts_with_subcommands = true)]
 pub struct BenchArgs {
+    #[command(subcommand)]
+    pub what: Option<BenchWhat>,
     /// Seconds for each of the two runs (bare loop, executive).
     #[arg(long, default_value_t = 10.0, value_parser = parse_seconds)]
     pub seconds: f64,
@@ -232,6 +249,28 @@ fn run<P: Platform>(platform: &P, command: Command) -> Result<ExitCode, String> 
                 eprint!("{}", checked.report);
                 Ok(ExitCode::from(1))
             }
+        }
+        Command::Bench(BenchArgs {
+            what: Some(BenchWhat::Parsers { json, megabytes }),
+            ..
+        }) => {
+            let figures = crate::bench_parsers::run(megabytes);
+            if json {
+                let text = serde_json::to_string_pretty(&figures).map_err(|e| e.to_string())?;
+                println!("{text}");
+            } else {
+                println!(
+                    "imu {:.1} MB/s, servo {:.1} MB/s, gps (all sentences) {:.1} MB/s; \
+                     GGA/RMC ours {:.1} MB/s vs nmea crate {:.1} MB/s (x{:.2})",
+                    figures.imu.mb_per_s,
+                    figures.servo.mb_per_s,
+                    figures.gps_all_sentences.mb_per_s,
+                    figures.gga_rmc.ours_mb_per_s,
+                    figures.gga_rmc.nmea_crate_mb_per_s,
+                    figures.gga_rmc.ratio
+                );
+            }
+            Ok(ExitCode::SUCCESS)
         }
         Command::Bench(args) => {
             let faults = fault_plan(&SHIPPED, &args.inject_overrun)?;

@@ -7,6 +7,7 @@
 //! back ends through [`platform::Platform`].
 
 pub mod bench;
+pub mod bench_parsers;
 pub mod check_schedule;
 pub mod cli;
 pub mod cyclictest;
