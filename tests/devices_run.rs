@@ -289,6 +289,22 @@ fn run_flies_three_pty_devices_through_unplug_and_silence() {
     );
     assert_eq!(gps["stale_events"], 1, "silent after 1.5 s: {gps}");
 
+    let task = |name: &str| -> &Value {
+        report["tasks"]
+            .as_array()
+            .and_then(|t| t.iter().find(|t| t["name"] == name))
+            .expect("task in report")
+    };
+    assert_eq!(
+        task("gps")["degraded"],
+        "device stale",
+        "the silent GPS shows in health"
+    );
+    assert!(
+        task("servo")["degraded"].is_null(),
+        "the servo board kept talking"
+    );
+
     let servo_report = device("servo");
     assert!(
         servo_report["frames"].as_u64().unwrap_or(0) >= 100,

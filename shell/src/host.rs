@@ -141,9 +141,17 @@ pub struct RunSummary {
     /// Time from the first release to the end of the last frame.
     pub elapsed_ns: u64,
     pub frames: FrameStats,
-    pub tasks: Vec<TaskHealth>,
-    /// Per task: log records its ring could not take.
-    pub log_dropped: Vec<u32>,
+    pub tasks: Vec<TaskAtEnd>,
+}
+
+/// A task's health when the run ended, with what the health board keeps beside it.
+#[derive(Clone, Debug)]
+pub struct TaskAtEnd {
+    pub health: TaskHealth,
+    /// Log records its ring could not take.
+    pub log_dropped: u32,
+    /// What it last said was wrong with its inputs (a stale device), if anything.
+    pub degraded: Option<&'static str>,
 }
 
 /// Runs `tasks` (one per slot of `table`, in table order) until the duration elapses or
@@ -202,13 +210,12 @@ pub fn run_executive<P: Platform>(
                 stop_reason,
                 elapsed_ns,
                 frames,
-                log_dropped: health.iter().map(|(_, d)| *d).collect(),
-                tasks: health.into_iter().map(|(h, _)| h).collect(),
+                tasks: health,
             })
     })
 }
 
-type Flown = (StopReason, u64, FrameStats, Vec<(TaskHealth, u32)>);
+type Flown = (StopReason, u64, FrameStats, Vec<TaskAtEnd>);
 
 fn fly<T: FrameTimer>(
     table: &'static FrameTable,
@@ -243,7 +250,13 @@ fn fly<T: FrameTimer>(
     executive.shutdown(tasks);
     let health = executive.health();
     let tasks = (0..health.task_count())
-        .filter_map(|i| health.task(i).copied().map(|h| (h, health.log_dropped(i))))
+        .filter_map(|i| {
+            health.task(i).map(|h| TaskAtEnd {
+                health: *h,
+                log_dropped: health.log_dropped(i),
+                degraded: health.degraded(i),
+            })
+        })
         .collect();
     Ok((reason, elapsed, health.frames, tasks))
 }
@@ -395,9 +408,9 @@ mod tests {
         assert_eq!(seen.len(), 6000, "60 s of 10 ms frames, none dropped");
         assert!(seen.windows(2).all(|w| w[1] == w[0] + 1));
         assert_eq!(summary.frames.timing_records_dropped, 0);
-        assert_eq!(summary.tasks[0].releases, 6000);
+        assert_eq!(summary.tasks[0].health.releases, 6000);
         assert!(
-            summary.tasks.iter().all(|t| !t.running),
+            summary.tasks.iter().all(|t| !t.health.running),
             "every task was shut down"
         );
         assert_eq!(summary.realtime.refusals().len(), 1);
@@ -463,7 +476,7 @@ mod tests {
         // gps (budget 500 us, policy reset) runs every 10th frame: 50 releases in 5 s, each
         // 1 ms over. Every overrun resets it before its next release, which overruns again;
         // the last overrun has no next release to reset.
-        let h = &summary.tasks[gps];
+        let h = &summary.tasks[gps].health;
         assert_eq!(h.releases, 50);
         assert_eq!(h.overruns.budget, 50);
         assert_eq!(h.resets, 49);

@@ -31,6 +31,8 @@ pub struct TaskReport {
     pub watchdog_misses: u32,
     /// Log records the task's ring could not take.
     pub log_dropped: u32,
+    /// What the task last said was wrong with its inputs (e.g. "device stale").
+    pub degraded: Option<&'static str>,
 }
 
 #[derive(Debug, Serialize)]
@@ -82,8 +84,8 @@ impl From<&RunSummary> for SummaryReport {
                 .tasks
                 .iter()
                 .zip(&s.tasks)
-                .zip(s.log_dropped.iter().copied().chain(std::iter::repeat(0)))
-                .map(|((slot, h), log_dropped)| TaskReport {
+                .map(|(slot, end)| (slot, &end.health, end.log_dropped, end.degraded))
+                .map(|(slot, h, log_dropped, degraded)| TaskReport {
                     name: slot.name,
                     budget_us: slot.budget_ns / 1000,
                     initialised: h.initialised,
@@ -104,6 +106,7 @@ impl From<&RunSummary> for SummaryReport {
                     exec_histogram: h.exec.histogram.to_vec(),
                     watchdog_misses: 0,
                     log_dropped,
+                    degraded,
                 })
                 .collect(),
         }

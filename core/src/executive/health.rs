@@ -123,6 +123,8 @@ pub struct HealthBoard {
     alive: [Cell<bool>; MAX_TASKS],
     /// Log records each task could not hand to its log ring (full).
     log_dropped: [Cell<u32>; MAX_TASKS],
+    /// What a task reports is wrong with what it depends on (a stale device), if anything.
+    degraded: [Cell<Option<&'static str>>; MAX_TASKS],
     count: usize,
     pub frames: FrameStats,
 }
@@ -133,6 +135,7 @@ impl HealthBoard {
             tasks: [TaskHealth::default(); MAX_TASKS],
             alive: [const { Cell::new(false) }; MAX_TASKS],
             log_dropped: [const { Cell::new(0) }; MAX_TASKS],
+            degraded: [const { Cell::new(None) }; MAX_TASKS],
             count: count.min(MAX_TASKS),
             frames: FrameStats::default(),
         }
@@ -170,6 +173,19 @@ impl HealthBoard {
 
     pub fn log_dropped(&self, index: usize) -> u32 {
         self.log_dropped.get(index).map_or(0, Cell::get)
+    }
+
+    /// A task says what is wrong with its inputs (`Some("device stale")`) or that all is well
+    /// again (`None`). The task keeps running; people and the ground station see why its
+    /// data may be old.
+    pub fn set_degraded(&self, index: usize, reason: Option<&'static str>) {
+        if let Some(c) = self.degraded.get(index) {
+            c.set(reason);
+        }
+    }
+
+    pub fn degraded(&self, index: usize) -> Option<&'static str> {
+        self.degraded.get(index).and_then(Cell::get)
     }
 
     pub(crate) fn mark_alive(&self, index: usize) {

@@ -17,6 +17,9 @@ pub const DEVICE_STATUS_LOG: LogFormat = LogFormat::new(
 
 const INTERVAL_NS: u64 = 1_000_000_000;
 
+/// The degraded reason a device task sets in its health while its device is stale.
+pub const DEVICE_STALE: &str = "device stale";
+
 /// The status record of one device task.
 pub struct DeviceStatusLog {
     index: u8,

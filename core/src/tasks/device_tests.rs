@@ -200,6 +200,20 @@ fn imu_task_reports_a_silent_device_stale() {
         port.borrow_mut().received.extend(imu_frame(0, 0.0));
         run_frames(&mut exec, &clock, &mut tasks, 3);
         fresh_at = clock.0.get();
+        assert_eq!(exec.health().degraded(0), None);
+        run_frames(&mut exec, &clock, &mut tasks, 10);
+        assert_eq!(
+            exec.health().degraded(0),
+            Some("device stale"),
+            "stale within 50 ms"
+        );
+        port.borrow_mut().received.extend(imu_frame(1, 0.0));
+        run_frames(&mut exec, &clock, &mut tasks, 1);
+        assert_eq!(
+            exec.health().degraded(0),
+            None,
+            "fresh again with the next frame"
+        );
         run_frames(&mut exec, &clock, &mut tasks, 10);
         exec.shutdown(&mut tasks);
     }

@@ -2,7 +2,7 @@
 //! estimator, logs it (`docs/log-streams.md`, `gps.bin`). A value the receiver did not give
 //! is logged as NaN (or the integer field's "unknown" value) so columns never shift.
 
-use super::device_status::DeviceStatusLog;
+use super::device_status::{DEVICE_STALE, DeviceStatusLog};
 use super::task_log::TaskLog;
 use crate::comm::{LatestSlot, RecordSink};
 use crate::devices::gps::{GpsConfig, GpsFix, NmeaDecoder};
@@ -111,6 +111,8 @@ impl<P: Read + ReadReady, S: RecordSink> Task for GpsTask<'_, P, S> {
             },
         );
         let stale = self.decoder.is_stale(cx.now_ns);
+        cx.health
+            .set_degraded(cx.task, stale.then_some(DEVICE_STALE));
         self.status
             .maybe_log(&mut self.log, cx, self.decoder.stats(), stale, false);
         drained

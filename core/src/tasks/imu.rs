@@ -1,7 +1,7 @@
 //! The IMU task: drains the IMU's bytes, publishes each sample for the estimator, logs fast
 //! frames and slow records (`docs/log-streams.md`, `imu.bin`).
 
-use super::device_status::DeviceStatusLog;
+use super::device_status::{DEVICE_STALE, DeviceStatusLog};
 use super::task_log::TaskLog;
 use crate::comm::{LatestSlot, RecordSink};
 use crate::devices::imu::{ImuDecoder, ImuFrame, ImuSample};
@@ -127,6 +127,8 @@ impl<P: Read + ReadReady, S: RecordSink> Task for ImuTask<'_, P, S> {
             },
         );
         let stale = self.decoder.is_stale(cx.now_ns);
+        cx.health
+            .set_degraded(cx.task, stale.then_some(DEVICE_STALE));
         self.status
             .maybe_log(&mut self.log, cx, self.decoder.stats(), stale, false);
         drained

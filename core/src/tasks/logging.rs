@@ -10,9 +10,9 @@ use crate::logfmt::record::LogFormat;
 
 pub const HEALTH_FORMAT_INDEX: u8 = 1;
 pub const HEALTH_LOG: LogFormat = LogFormat::new(
-    "%hhu,%hhu,%hhu,%hhu,%hhu,%llu,%u,%u,%u,%u,%u,%u,%.1f,%.1f,%u",
+    "%hhu,%hhu,%hhu,%hhu,%hhu,%llu,%u,%u,%u,%u,%u,%u,%.1f,%.1f,%u,%hhu",
     "task,initialised,running,in_frame,alive,releases,overruns_budget,overruns_frame,\
-     overruns_missed,skipped,resets,faults,exec_mean_us,exec_max_us,log_dropped",
+     overruns_missed,skipped,resets,faults,exec_mean_us,exec_max_us,log_dropped,degraded",
 );
 
 pub struct LoggingTask<S: RecordSink> {
@@ -41,6 +41,7 @@ impl<S: RecordSink> LoggingTask<S> {
             };
             let alive = health.alive(index);
             let dropped = health.log_dropped(index);
+            let degraded = health.degraded(index).is_some();
             self.log.record(cx, HEALTH_FORMAT_INDEX, &self.format, |w| {
                 w.u8(index as u8)
                     .u8(u8::from(h.initialised))
@@ -57,6 +58,7 @@ impl<S: RecordSink> LoggingTask<S> {
                     .f32(h.exec.mean_ns() as f32 / 1e3)
                     .f32(h.exec.max_ns as f32 / 1e3)
                     .u32(dropped)
+                    .u8(u8::from(degraded))
             });
         }
     }

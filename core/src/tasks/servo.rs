@@ -6,7 +6,7 @@
 //! `autopilot_ready` clear: the board keeps the pilot in control and knows the computer is
 //! alive.
 
-use super::device_status::DeviceStatusLog;
+use super::device_status::{DEVICE_STALE, DeviceStatusLog};
 use super::task_log::TaskLog;
 use crate::comm::{LatestSlot, RecordSink, SlotReader};
 use crate::devices::port::{CommandWriter, drain};
@@ -233,6 +233,8 @@ where
             },
         );
         let stale = self.decoder.is_stale(cx.now_ns);
+        cx.health
+            .set_degraded(cx.task, stale.then_some(DEVICE_STALE));
         self.status
             .maybe_log(&mut self.log, cx, self.decoder.stats(), stale, false);
         drained
