@@ -18,6 +18,15 @@ use crate::input::{expand, problem_line, progress_bar, read_file, report_line};
 const INDEXES: usize = 256;
 
 pub fn run(inputs: &[PathBuf], out_dir: Option<&Path>) -> Outcome {
+    convert(inputs, out_dir, true)
+}
+
+/// [`run`] without a progress bar, for timing it (`bench`).
+pub fn run_quiet(inputs: &[PathBuf], out_dir: Option<&Path>) -> Outcome {
+    convert(inputs, out_dir, false)
+}
+
+fn convert(inputs: &[PathBuf], out_dir: Option<&Path>, progress: bool) -> Outcome {
     let files = match expand(inputs) {
         Ok(files) => files,
         Err(message) => {
@@ -34,7 +43,11 @@ pub fn run(inputs: &[PathBuf], out_dir: Option<&Path>) -> Outcome {
             return Outcome::Failed;
         }
     }
-    let bar = progress_bar(&files);
+    let bar = if progress {
+        progress_bar(&files)
+    } else {
+        ProgressBar::hidden()
+    };
     let mut reader = Box::new(LogReader::new());
     let mut outcome = Outcome::Whole;
     // Output name prefix → the input that writes it: two inputs of the same stem would
