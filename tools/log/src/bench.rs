@@ -136,7 +136,9 @@ fn values(spec: &Shipped, n: u64, t: f64, noise: &mut Noise) -> Vec<Value> {
                 Value::U8(0),
             ];
             for _ in FRAME_TASKS {
-                v.push(Value::U32(150_000 + (noise.next().abs() * 600_000.0) as u32));
+                v.push(Value::U32(
+                    150_000 + (noise.next().abs() * 600_000.0) as u32,
+                ));
             }
             v
         }
@@ -370,7 +372,11 @@ fn ulog2csv_command() -> Option<Vec<String>> {
     if works("ulog2csv", &["-h"]) {
         Some(vec!["ulog2csv".into()])
     } else if works("python3", &["-m", "pyulog.ulog2csv", "-h"]) {
-        Some(vec!["python3".into(), "-m".into(), "pyulog.ulog2csv".into()])
+        Some(vec![
+            "python3".into(),
+            "-m".into(),
+            "pyulog.ulog2csv".into(),
+        ])
     } else {
         None
     }
@@ -492,8 +498,7 @@ fn bench(minutes: f64, runs: u32) -> Result<BenchReport, String> {
         let path = csv.join(format!("{}.{}.csv", spec.stream, spec.index));
         let (lines, text) = text_lines(&path)?;
         csv_bytes += std::fs::metadata(&path).map(|m| m.len()).unwrap_or(0);
-        let parsed = Format::parse(&spec.format)
-            .map_err(|e| format!("{}: {e}", spec.format))?;
+        let parsed = Format::parse(&spec.format).map_err(|e| format!("{}: {e}", spec.format))?;
         let bin_per = (12 + parsed.data_len()) as f64;
         let text_per = text as f64 / lines.max(1) as f64;
         all_bin += lines * (12 + parsed.data_len() as u64);
@@ -524,7 +529,9 @@ fn bench(minutes: f64, runs: u32) -> Result<BenchReport, String> {
     let (ulog2csv, unavailable) = match ulog2csv_command() {
         None => (
             None,
-            Some("neither ulog2csv nor python3 -m pyulog.ulog2csv runs (pip install pyulog)".into()),
+            Some(
+                "neither ulog2csv nor python3 -m pyulog.ulog2csv runs (pip install pyulog)".into(),
+            ),
         ),
         Some(command) => {
             let mut runs_s = Vec::new();

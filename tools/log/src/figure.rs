@@ -211,10 +211,7 @@ const X_LABEL_AREA: u32 = 40;
 const Y_LABEL_AREA: u32 = 70;
 const CAPTION_FONT: u32 = 16;
 
-fn draw<DB: DrawingBackend>(
-    figure: &Figure,
-    root: &DrawingArea<DB, Shift>,
-) -> Result<(), String> {
+fn draw<DB: DrawingBackend>(figure: &Figure, root: &DrawingArea<DB, Shift>) -> Result<(), String> {
     let err = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
     root.fill(&WHITE).map_err(err)?;
     let area = if figure.title.is_empty() {
@@ -272,9 +269,7 @@ fn draw_panel<DB: DrawingBackend>(
     if !panel.title.is_empty() {
         builder.caption(&panel.title, (FONT, CAPTION_FONT));
     }
-    let mut chart = builder
-        .build_cartesian_2d(x0..x1, y0..y1)
-        .map_err(err)?;
+    let mut chart = builder.build_cartesian_2d(x0..x1, y0..y1).map_err(err)?;
     chart
         .configure_mesh()
         .x_desc(panel.x_label.as_str())

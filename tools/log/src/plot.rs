@@ -105,7 +105,11 @@ pub fn resolve_column(
     let known = || {
         tables
             .iter()
-            .flat_map(|t| t.columns.iter().map(move |c| format!("{c} (format {})", t.index)))
+            .flat_map(|t| {
+                t.columns
+                    .iter()
+                    .map(move |c| format!("{c} (format {})", t.index))
+            })
             .collect::<Vec<_>>()
             .join(", ")
     };
