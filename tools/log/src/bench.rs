@@ -406,19 +406,17 @@ fn time_ulog2csv(command: &[String], ulogs: &[PathBuf], out: &Path) -> Result<f6
     Ok(start.elapsed().as_secs_f64())
 }
 
-pub fn run(json: bool, minutes: f64, runs: u32) -> Outcome {
-    match bench(minutes, runs.max(1)) {
+pub fn run(json: bool, minutes: f64, runs: u32, keep_flight: Option<&Path>) -> Outcome {
+    match bench(minutes, runs.max(1), keep_flight) {
         Ok(report) => {
             if json {
-                match serde_json::to_string_pretty(&report) {
-                    Ok(text) => println!("{text}"),
-                    Err(e) => {
-                        eprintln!("skyframe-log: bench: {e}");
-                        return Outcome::Failed;
-                    }
+                if let Err(e) = crate::print_json(&report) {
+                    eprintln!("skyframe-log: {e}");
+                    return Outcome::Failed;
                 }
-            } else {
-                print_table(&report);
+            } else if let Err(e) = crate::print_text(&table(&report)) {
+                eprintln!("skyframe-log: {e}");
+                return Outcome::Failed;
             }
             Outcome::Whole
         }
@@ -429,21 +427,29 @@ pub fn run(json: bool, minutes: f64, runs: u32) -> Outcome {
     }
 }
 
-fn print_table(r: &BenchReport) {
-    println!(
+fn table(r: &BenchReport) -> String {
+    use std::fmt::Write as _;
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
         "synthetic flight: {} min, {} records, {} bytes binary ({} build)",
         r.flight_minutes, r.records, r.binary_bytes, r.profile
     );
-    println!(
+    let _ = writeln!(
+        out,
         "to-csv: best {:.3} s of {} runs, {:.1} MB/s of binary in, {} bytes of CSV",
         r.to_csv.best_s,
         r.to_csv.runs_s.len(),
         r.to_csv.mb_per_s,
         r.csv_bytes
     );
-    println!("format       records  binary B/rec  text B/rec  saving");
+    let _ = writeln!(
+        out,
+        "format       records  binary B/rec  text B/rec  saving"
+    );
     for f in &r.formats {
-        println!(
+        let _ = writeln!(
+            out,
             "{:<10} {:>9}  {:>12.1}  {:>10.1}  {:>5.1} %",
             format!("{}.{}", f.stream, f.index),
             f.records,
@@ -452,21 +458,24 @@ fn print_table(r: &BenchReport) {
             f.saving_percent
         );
     }
-    println!("all records: {:.1} % saving", r.total_saving_percent);
-    match (&r.ulog2csv, r.ulog2csv_over_to_csv_time) {
-        (Some(u), Some(ratio)) => println!(
+    let _ = writeln!(out, "all records: {:.1} % saving", r.total_saving_percent);
+    let _ = match (&r.ulog2csv, r.ulog2csv_over_to_csv_time) {
+        (Some(u), Some(ratio)) => writeln!(
+            out,
             "ulog2csv ({}): best {:.3} s for {} ULog files ({} bytes, {:.1} MB/s); \
              ulog2csv time / to-csv time = {ratio:.1}",
             u.command, u.timing.best_s, u.files, r.ulog_bytes, u.timing.mb_per_s
         ),
-        _ => println!(
+        _ => writeln!(
+            out,
             "ulog2csv not timed: {}",
             r.ulog2csv_unavailable.as_deref().unwrap_or("unknown")
         ),
-    }
+    };
+    out
 }
 
-fn bench(minutes: f64, runs: u32) -> Result<BenchReport, String> {
+fn bench(minutes: f64, runs: u32, keep_flight: Option<&Path>) -> Result<BenchReport, String> {
     if !(minutes > 0.0 && minutes <= 600.0) {
         return Err(format!("--minutes {minutes}: must be in (0, 600]"));
     }
@@ -480,6 +489,14 @@ fn bench(minutes: f64, runs: u32) -> Result<BenchReport, String> {
     }
     let files = synthesise(&flight, minutes * 60.0)?;
     let binary_bytes: u64 = files.iter().map(|f| f.1).sum();
+    if let Some(keep) = keep_flight {
+        std::fs::create_dir_all(keep).map_err(|e| format!("{}: {e}", keep.display()))?;
+        for (stream, _) in &files {
+            let name = format!("{stream}.bin");
+            std::fs::copy(flight.join(&name), keep.join(&name))
+                .map_err(|e| format!("{}: {e}", keep.join(&name).display()))?;
+        }
+    }
 
     let mut runs_s = Vec::new();
     for _ in 0..runs {

@@ -72,6 +72,8 @@ const FONT: &str = "sans-serif";
 /// Points per series drawn at most; longer series keep each bucket's first, min, max and last
 /// point, so spikes (the intervals' peaks) survive.
 const MAX_DRAWN_POINTS: usize = 8000;
+/// The same for point clouds (each point is a circle element in SVG).
+const MAX_DRAWN_MARKERS: usize = 3000;
 
 const COLOURS: [RGBColor; 8] = [
     RGBColor(31, 119, 180),
@@ -153,7 +155,7 @@ fn padded((lo, hi): (f64, f64)) -> (f64, f64) {
 
 /// Splits a series where a coordinate is not finite and thins it to at most
 /// [`MAX_DRAWN_POINTS`] per segment.
-fn segments(points: &[(f64, f64)]) -> Vec<Vec<(f64, f64)>> {
+fn segments(points: &[(f64, f64)], max: usize) -> Vec<Vec<(f64, f64)>> {
     let mut out = Vec::new();
     let mut current = Vec::new();
     for &(x, y) in points {
@@ -166,16 +168,16 @@ fn segments(points: &[(f64, f64)]) -> Vec<Vec<(f64, f64)>> {
     if !current.is_empty() {
         out.push(current);
     }
-    out.into_iter().map(|s| thin(&s)).collect()
+    out.into_iter().map(|s| thin(&s, max)).collect()
 }
 
-fn thin(points: &[(f64, f64)]) -> Vec<(f64, f64)> {
-    if points.len() <= MAX_DRAWN_POINTS {
+fn thin(points: &[(f64, f64)], max: usize) -> Vec<(f64, f64)> {
+    if points.len() <= max {
         return points.to_vec();
     }
-    let buckets = MAX_DRAWN_POINTS / 4;
+    let buckets = (max / 4).max(1);
     let per = points.len().div_ceil(buckets);
-    let mut out = Vec::with_capacity(MAX_DRAWN_POINTS);
+    let mut out = Vec::with_capacity(max);
     for chunk in points.chunks(per) {
         let (Some(&first), Some(&last)) = (chunk.first(), chunk.last()) else {
             continue;
@@ -270,8 +272,12 @@ fn draw_panel<DB: DrawingBackend>(
         builder.caption(&panel.title, (FONT, CAPTION_FONT));
     }
     let mut chart = builder.build_cartesian_2d(x0..x1, y0..y1).map_err(err)?;
+    // About one y label per 40 pixels, so short panels stay legible.
+    let (_, height) = area.dim_in_pixel();
+    let y_labels = usize::try_from(height / 40).unwrap_or(10).clamp(3, 10);
     chart
         .configure_mesh()
+        .y_labels(y_labels)
         .x_desc(panel.x_label.as_str())
         .y_desc(panel.y_label.as_str())
         .label_style((FONT, 12))
@@ -287,7 +293,11 @@ fn draw_panel<DB: DrawingBackend>(
         legend.label(series.label.as_str()).legend(move |(x, y)| {
             PathElement::new(vec![(x, y), (x + 20, y)], colour.stroke_width(2))
         });
-        for segment in segments(&series.points) {
+        let max = match series.style {
+            Style::Line => MAX_DRAWN_POINTS,
+            Style::Points => MAX_DRAWN_MARKERS,
+        };
+        for segment in segments(&series.points, max) {
             match series.style {
                 Style::Line => {
                     chart
@@ -328,7 +338,7 @@ mod tests {
         let mut points: Vec<(f64, f64)> = (0..100_000).map(|i| (f64::from(i), 1.0)).collect();
         points[54_321].1 = 300.0;
         points[77_777].1 = -5.0;
-        let thinned = thin(&points);
+        let thinned = thin(&points, MAX_DRAWN_POINTS);
         assert!(thinned.len() <= MAX_DRAWN_POINTS);
         assert!(thinned.contains(&(54_321.0, 300.0)));
         assert!(thinned.contains(&(77_777.0, -5.0)));
@@ -339,7 +349,7 @@ mod tests {
     fn nan_breaks_lines() {
         let points = [(0.0, 1.0), (1.0, f64::NAN), (2.0, 2.0), (3.0, 3.0)];
         assert_eq!(
-            segments(&points),
+            segments(&points, 100),
             vec![vec![(0.0, 1.0)], vec![(2.0, 2.0), (3.0, 3.0)]]
         );
     }

@@ -124,6 +124,10 @@ enum Command {
         /// Timed runs of each converter; the fastest counts.
         #[arg(long, value_name = "N", default_value_t = 3)]
         runs: u32,
+        /// Also keep the synthetic flight's streams in this directory (created if missing),
+        /// e.g. to try `plot --report` on them.
+        #[arg(long, value_name = "DIR")]
+        keep_flight: Option<PathBuf>,
     },
 }
 
@@ -143,6 +147,25 @@ impl Outcome {
             Outcome::Failed => ExitCode::from(2),
         }
     }
+}
+
+/// Prints `value` as pretty JSON on stdout; a closed pipe is an error, not a panic.
+pub fn print_json(value: &impl serde::Serialize) -> Result<(), String> {
+    use std::io::Write;
+    let text = serde_json::to_string_pretty(value).map_err(|e| format!("JSON: {e}"))?;
+    let mut out = std::io::stdout().lock();
+    writeln!(out, "{text}")
+        .and_then(|()| out.flush())
+        .map_err(|e| format!("stdout: {e}"))
+}
+
+/// Prints `text` on stdout; a closed pipe is an error, not a panic.
+pub fn print_text(text: &str) -> Result<(), String> {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    out.write_all(text.as_bytes())
+        .and_then(|()| out.flush())
+        .map_err(|e| format!("stdout: {e}"))
 }
 
 fn main() -> ExitCode {
@@ -173,7 +196,8 @@ fn main() -> ExitCode {
             json,
             minutes,
             runs,
-        } => bench::run(json, minutes, runs),
+            keep_flight,
+        } => bench::run(json, minutes, runs, keep_flight.as_deref()),
     };
     outcome.exit_code()
 }

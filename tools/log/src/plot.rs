@@ -387,11 +387,7 @@ struct Report<'a> {
 impl Report<'_> {
     fn table(&mut self, stream: &str, index: u8) -> Result<&Table, Skip> {
         let unknown = format!("no {stream}.bin in {}", self.loaded.source.display());
-        let s = self
-            .loaded
-            .load(stream)
-            .map_err(|e| format!("{e}"))?
-            .ok_or(unknown)?;
+        let s = self.loaded.load(stream)?.ok_or(unknown)?;
         s.tables
             .get(&index)
             .ok_or_else(|| format!("{}: no records of format {index}", s.path.display()))
@@ -636,12 +632,9 @@ pub fn run_report(path: &Path, dir: &Path, json: bool, options: &PlotOptions) ->
     match report(path, dir, options) {
         Ok(summary) => {
             if json {
-                match serde_json::to_string_pretty(&summary) {
-                    Ok(text) => println!("{text}"),
-                    Err(e) => {
-                        eprintln!("skyframe-log: summary: {e}");
-                        return Outcome::Failed;
-                    }
+                if let Err(e) = crate::print_json(&summary) {
+                    eprintln!("skyframe-log: {e}");
+                    return Outcome::Failed;
                 }
             }
             if summary.problems > 0 {
