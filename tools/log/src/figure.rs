@@ -69,6 +69,10 @@ impl ImageFormat {
 }
 
 const FONT: &str = "sans-serif";
+/// The largest magnitude an axis extends to.
+const MAX_AXIS: f64 = 1e300;
+/// The shortest panel drawn: a figure keeps its first panels that fit.
+pub const MIN_PANEL_HEIGHT: u32 = 80;
 /// Points per series drawn at most; longer series keep each bucket's first, min, max and last
 /// point, so spikes (the intervals' peaks) survive.
 const MAX_DRAWN_POINTS: usize = 8000;
@@ -94,6 +98,14 @@ fn register_font() -> Result<(), String> {
             .map_err(|_| "the embedded font could not be loaded".to_string());
     });
     result
+}
+
+/// How many panels a figure of `size` draws: each at least [`MIN_PANEL_HEIGHT`] pixels high
+/// (minus the title's room).
+pub fn panels_that_fit(size: (u32, u32)) -> usize {
+    usize::try_from(size.1.saturating_sub(40) / MIN_PANEL_HEIGHT)
+        .unwrap_or(1)
+        .max(1)
 }
 
 /// Draws `figure` into `path` (`.png` or `.svg`), `size` pixels.
@@ -133,9 +145,10 @@ fn write_png(path: &Path, (w, h): (u32, u32), rgb: &[u8]) -> Result<(), String> 
 }
 
 /// Finite (min, max) of some values; `None` when none is finite.
+/// Values beyond ±[`MAX_AXIS`] are left off the axes (drawn clipped), so a span stays finite.
 fn extent(values: impl Iterator<Item = f64>) -> Option<(f64, f64)> {
     values
-        .filter(|v| v.is_finite())
+        .filter(|v| v.is_finite() && v.abs() <= MAX_AXIS)
         .fold(None, |acc, v| match acc {
             None => Some((v, v)),
             Some((lo, hi)) => Some((lo.min(v), hi.max(v))),
@@ -153,13 +166,15 @@ fn padded((lo, hi): (f64, f64)) -> (f64, f64) {
     }
 }
 
-/// Splits a series where a coordinate is not finite and thins it to at most
+/// Splits a series where a coordinate is not finite (or beyond ±[`MAX_AXIS`]: plotters'
+/// pixel arithmetic overflows there) and thins it to at most
 /// [`MAX_DRAWN_POINTS`] per segment.
 fn segments(points: &[(f64, f64)], max: usize) -> Vec<Vec<(f64, f64)>> {
     let mut out = Vec::new();
     let mut current = Vec::new();
+    let drawable = |v: f64| v.is_finite() && v.abs() <= MAX_AXIS;
     for &(x, y) in points {
-        if x.is_finite() && y.is_finite() {
+        if drawable(x) && drawable(y) {
             current.push((x, y));
         } else if !current.is_empty() {
             out.push(std::mem::take(&mut current));
@@ -221,8 +236,10 @@ fn draw<DB: DrawingBackend>(figure: &Figure, root: &DrawingArea<DB, Shift>) -> R
     } else {
         root.titled(&figure.title, (FONT, 22)).map_err(err)?
     };
-    let count = figure.panels.len().max(1);
+    let fit = panels_that_fit(root.dim_in_pixel());
+    let count = figure.panels.len().clamp(1, fit);
     let areas = area.split_evenly((count, 1));
+    // Panels past `fit` are left out (the caller says so: see `panels_that_fit`).
     for (panel, area) in figure.panels.iter().zip(&areas) {
         draw_panel(panel, area)?;
     }

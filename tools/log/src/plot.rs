@@ -382,6 +382,7 @@ pub fn local_north_east(lat0: f64, lon0: f64, lat: f64, lon: f64) -> (f64, f64) 
 struct Report<'a> {
     loaded: &'a mut Loaded,
     t0: i64,
+    size: (u32, u32),
 }
 
 impl Report<'_> {
@@ -562,6 +563,16 @@ impl Report<'_> {
         if panels.is_empty() {
             return Err("no stream has records".into());
         }
+        let fit = crate::figure::panels_that_fit(self.size);
+        if panels.len() > fit {
+            eprintln!(
+                "skyframe-log: note: intervals: {} of {} formats drawn (a taller --size draws \
+                 more; --json lists them all)",
+                fit,
+                panels.len()
+            );
+            panels.truncate(fit);
+        }
         Ok(Figure {
             title: "Interval between consecutive entries".into(),
             panels,
@@ -661,6 +672,7 @@ pub fn report(path: &Path, dir: &Path, options: &PlotOptions) -> Result<ReportSu
     let mut report = Report {
         loaded: &mut loaded,
         t0,
+        size: options.size,
     };
     let mut summary = ReportSummary {
         source: path.display().to_string(),

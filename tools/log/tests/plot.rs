@@ -373,3 +373,65 @@ fn a_text_log_written_with_the_core_equals_the_conversion() {
         "a data line as log-format.md spells it"
     );
 }
+
+#[test]
+fn extreme_values_and_many_formats_plot_without_panicking() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    const WILD: LogFormat = LogFormat::new("%lf,%f,%llu", "x_m,y_m,n");
+    let mut wild = StreamFile::new(&[(1, WILD)]);
+    let values = [
+        (f64::MAX, f32::MAX, u64::MAX),
+        (-f64::MAX, f32::MIN, 0),
+        (f64::INFINITY, f32::NEG_INFINITY, 1),
+        (f64::NAN, f32::NAN, 2),
+        (1e-300, 1e-30, 3),
+    ];
+    // Times that go backwards, too.
+    for (i, (x, y, n)) in values.into_iter().enumerate() {
+        let t_ns = [5, 1, 3, 3, 0][i] * 1_000_000;
+        wild.record(
+            1,
+            &WILD,
+            t_ns,
+            &[Value::F64(x), Value::F32(y), Value::U64(n)],
+        );
+    }
+    wild.finish(&dir.path().join("wild.bin"));
+    // One stream of 40 formats, one record each: more interval panels than fit.
+    let formats: Vec<(u8, LogFormat)> = (1..=40u8)
+        .map(|i| (i, LogFormat::new("%hhu", "v")))
+        .collect();
+    let mut many = StreamFile::new(&formats);
+    for (i, format) in &formats {
+        many.record(*i, format, u64::from(*i) * 1_000, &[Value::U8(*i)]);
+        many.record(*i, format, u64::from(*i) * 2_000, &[Value::U8(*i)]);
+    }
+    many.finish(&dir.path().join("many.bin"));
+
+    let out = dir.path().join("report");
+    let output = skyframe_log(&["plot", s(dir.path()), "--report", s(&out), "--json"]);
+    let err = stderr(&output);
+    assert_eq!(output.status.code(), Some(0), "stderr: {err}");
+    assert!(err.contains("intervals: 11 of 41 formats drawn"), "{err}");
+    assert_eq!(png_size(&out.join("intervals.png")), (1280, 960));
+    let summary: serde_json::Value = serde_json::from_slice(&output.stdout).expect("json");
+    assert_eq!(summary["intervals"].as_array().expect("list").len(), 41);
+    for series in ["wild.x", "wild.y", "wild.n"] {
+        let svg = dir.path().join("wild.svg");
+        let output = skyframe_log(&["plot", s(dir.path()), "--series", series, "-o", s(&svg)]);
+        assert_eq!(
+            output.status.code(),
+            Some(0),
+            "{series}: {}",
+            stderr(&output)
+        );
+        let png = dir.path().join("wild.png");
+        let output = skyframe_log(&["plot", s(dir.path()), "--series", series, "-o", s(&png)]);
+        assert_eq!(
+            output.status.code(),
+            Some(0),
+            "{series}: {}",
+            stderr(&output)
+        );
+    }
+}
