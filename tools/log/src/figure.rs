@@ -36,6 +36,8 @@ pub struct Panel {
     pub series: Vec<Series>,
     /// One metre on x is as long as one metre on y (a map).
     pub equal_axes: bool,
+    /// The y axis covers at least this range (e.g. 0 and 1 for a flag).
+    pub y_covers: Option<(f64, f64)>,
 }
 
 #[derive(Clone, Debug, Default)]
@@ -264,6 +266,11 @@ fn draw_panel<DB: DrawingBackend>(
             .flat_map(|s| s.points.iter().filter(|p| p.0.is_finite()).map(|p| p.1)),
     );
     let (mut x0, mut x1) = padded(xs.unwrap_or((0.0, 1.0)));
+    let ys = match (ys, panel.y_covers) {
+        (Some((lo, hi)), Some((a, b))) => Some((lo.min(a), hi.max(b))),
+        (None, covers) => covers,
+        (ys, None) => ys,
+    };
     let (mut y0, mut y1) = padded(ys.unwrap_or((0.0, 1.0)));
     if panel.equal_axes {
         let (w, h) = area.dim_in_pixel();

@@ -239,6 +239,18 @@ impl Source {
         }
     }
 
+    /// Why stream `name` is not there, for a note.
+    pub fn missing(&self, name: &str) -> String {
+        match self {
+            Source::Dir(dir) => format!("no {name}.bin in {}", dir.display()),
+            Source::File(path) => format!(
+                "no {name} stream: {} is the {} stream (give the flight directory)",
+                path.display(),
+                stream_name(path)
+            ),
+        }
+    }
+
     pub fn display(&self) -> String {
         match self {
             Source::Dir(p) | Source::File(p) => p.display().to_string(),

@@ -281,7 +281,7 @@ fn plot_series(
                     x_label: "time (s)".into(),
                     y_label: if unit.is_empty() { String::new() } else { unit },
                     series: vec![line],
-                    equal_axes: false,
+                    ..Panel::default()
                 },
             )),
         }
@@ -387,7 +387,7 @@ struct Report<'a> {
 
 impl Report<'_> {
     fn table(&mut self, stream: &str, index: u8) -> Result<&Table, Skip> {
-        let unknown = format!("no {stream}.bin in {}", self.loaded.source.display());
+        let unknown = self.loaded.source.missing(stream);
         let s = self.loaded.load(stream)?.ok_or(unknown)?;
         s.tables
             .get(&index)
@@ -435,31 +435,44 @@ impl Report<'_> {
             x_label: "time (s)".into(),
             y_label: y_label.into(),
             series: self.series(stream, index, columns, style)?,
-            equal_axes: false,
+            ..Panel::default()
         })
     }
 
     fn gps_validity(&mut self) -> Result<Figure, Skip> {
+        let covering = |mut panel: Panel, covers| {
+            panel.y_covers = Some(covers);
+            panel
+        };
         Ok(Figure {
             title: "GPS validity".into(),
             panels: vec![
-                self.time_panel("fix valid", "valid", "gps", 1, &["valid"], Style::Line)?,
-                self.time_panel(
-                    "fix quality (GGA: 0 none, 1 GPS, 2 DGPS, ...)",
-                    "quality",
-                    "gps",
-                    1,
-                    &["quality"],
-                    Style::Line,
-                )?,
-                self.time_panel(
-                    "satellites used",
-                    "satellites",
-                    "gps",
-                    1,
-                    &["satellites"],
-                    Style::Line,
-                )?,
+                covering(
+                    self.time_panel("fix valid", "valid", "gps", 1, &["valid"], Style::Line)?,
+                    (0.0, 1.0),
+                ),
+                covering(
+                    self.time_panel(
+                        "fix quality (GGA: 0 none, 1 GPS, 2 DGPS, ...)",
+                        "quality",
+                        "gps",
+                        1,
+                        &["quality"],
+                        Style::Line,
+                    )?,
+                    (0.0, 2.0),
+                ),
+                covering(
+                    self.time_panel(
+                        "satellites used",
+                        "satellites",
+                        "gps",
+                        1,
+                        &["satellites"],
+                        Style::Line,
+                    )?,
+                    (0.0, 4.0),
+                ),
             ],
         })
     }
@@ -501,6 +514,7 @@ impl Report<'_> {
                     style: Style::Line,
                 }],
                 equal_axes: true,
+                ..Panel::default()
             }],
         })
     }
@@ -555,7 +569,7 @@ impl Report<'_> {
                         points,
                         style: Style::Points,
                     }],
-                    equal_axes: false,
+                    ..Panel::default()
                 });
                 stats.push(s);
             }
