@@ -6,6 +6,8 @@
 //! `--runs` conversions of the whole flight directory, in this process (no progress bar).
 //! The ratio is `ulog2csv` seconds over `to-csv` seconds for the same flight: how many times
 //! longer pyulog takes (its Python start-up included, once per ULog file, as a user meets it).
+//! A second ratio leaves the start-up out: pyulog's `convert_ulog2csv` timed inside one warm
+//! Python process.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -344,8 +346,11 @@ struct Ulog2Csv {
     files: usize,
     /// Seconds for all ULog files of the flight (one invocation per file), per run.
     timing: Timing,
-    /// One `python3 -c 'import pyulog'`: the start-up each invocation pays.
+    /// One `python3 -c 'import pyulog.ulog2csv'`: the start-up each invocation pays.
     python_import_s: Option<f64>,
+    /// pyulog's `convert_ulog2csv` on the same files inside one warm Python process (start-up
+    /// excluded): the conversion work alone, best of the runs.
+    in_process_best_s: Option<f64>,
 }
 
 #[derive(Serialize)]
@@ -363,8 +368,11 @@ struct BenchReport {
     ulog2csv: Option<Ulog2Csv>,
     /// Why ulog2csv was not timed, when it was not.
     ulog2csv_unavailable: Option<String>,
-    /// ulog2csv best seconds / to-csv best seconds for the same flight.
+    /// ulog2csv best seconds / to-csv best seconds for the same flight (the CLI as a user
+    /// runs it, once per ULog file).
     ulog2csv_over_to_csv_time: Option<f64>,
+    /// The same without Python's start-up: pyulog's conversion alone / to-csv.
+    pyulog_in_process_over_to_csv_time: Option<f64>,
 }
 
 /// Data lines and their bytes (newline included) of a CSV file.
@@ -399,6 +407,40 @@ fn ulog2csv_command() -> Option<Vec<String>> {
     } else {
         None
     }
+}
+
+/// Times pyulog's converter inside one Python process: the best of `runs` conversions of
+/// all `ulogs`, in seconds.
+const IN_PROCESS: &str = r#"
+import sys, time
+from pyulog.ulog2csv import convert_ulog2csv
+runs, out, files = int(sys.argv[1]), sys.argv[2], sys.argv[3:]
+best = float("inf")
+for _ in range(runs):
+    start = time.perf_counter()
+    for f in files:
+        convert_ulog2csv(f, None, out, ",", None, None)
+    best = min(best, time.perf_counter() - start)
+print(best)
+"#;
+
+fn time_pyulog_in_process(ulogs: &[PathBuf], out: &Path, runs: u32) -> Option<f64> {
+    let output = Command::new("python3")
+        .args(["-c", IN_PROCESS, &runs.to_string()])
+        .arg(out)
+        .args(ulogs)
+        .output()
+        .ok()?;
+    if !output.status.success() {
+        return None;
+    }
+    // pyulog prints a line per CSV it writes; the time is the last line.
+    String::from_utf8_lossy(&output.stdout)
+        .lines()
+        .last()?
+        .trim()
+        .parse()
+        .ok()
 }
 
 fn time_ulog2csv(command: &[String], ulogs: &[PathBuf], out: &Path) -> Result<f64, String> {
@@ -482,8 +524,19 @@ fn table(r: &BenchReport) -> String {
         (Some(u), Some(ratio)) => writeln!(
             out,
             "ulog2csv ({}): best {:.3} s for {} ULog files ({} bytes, {:.1} MB/s); \
-             ulog2csv time / to-csv time = {ratio:.1}",
-            u.command, u.timing.best_s, u.files, r.ulog_bytes, u.timing.mb_per_s
+             ulog2csv time / to-csv time = {ratio:.1}{}",
+            u.command,
+            u.timing.best_s,
+            u.files,
+            r.ulog_bytes,
+            u.timing.mb_per_s,
+            match (u.in_process_best_s, r.pyulog_in_process_over_to_csv_time) {
+                (Some(s), Some(x)) => format!(
+                    "\npyulog's converter in one warm Python process (no start-up): best \
+                     {s:.3} s; its time / to-csv time = {x:.1}"
+                ),
+                _ => String::new(),
+            }
         ),
         _ => writeln!(
             out,
@@ -591,12 +644,14 @@ fn bench(minutes: f64, runs: u32, keep_flight: Option<&Path>) -> Result<BenchRep
                         .ok()
                         .filter(|s| s.success())
                         .map(|_| start.elapsed().as_secs_f64());
+                    let in_process = time_pyulog_in_process(&ulogs, &ulog_csv, runs);
                     (
                         Some(Ulog2Csv {
                             command: command.join(" "),
                             files: ulogs.len(),
                             timing: Timing::new(runs_s, ulog_bytes),
                             python_import_s: import,
+                            in_process_best_s: in_process,
                         }),
                         None,
                     )
@@ -605,6 +660,10 @@ fn bench(minutes: f64, runs: u32, keep_flight: Option<&Path>) -> Result<BenchRep
         }
     };
     let ratio = ulog2csv.as_ref().map(|u| u.timing.best_s / to_csv.best_s);
+    let in_process_ratio = ulog2csv
+        .as_ref()
+        .and_then(|u| u.in_process_best_s)
+        .map(|s| s / to_csv.best_s);
     Ok(BenchReport {
         profile: if cfg!(debug_assertions) {
             "debug"
@@ -622,5 +681,6 @@ fn bench(minutes: f64, runs: u32, keep_flight: Option<&Path>) -> Result<BenchRep
         ulog2csv,
         ulog2csv_unavailable: unavailable,
         ulog2csv_over_to_csv_time: ratio,
+        pyulog_in_process_over_to_csv_time: in_process_ratio,
     })
 }

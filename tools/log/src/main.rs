@@ -1,6 +1,13 @@
 //! `skyframe-log`: reads skyframe's binary flight logs (`shared/specs/log-format.md`), the
 //! successor of the thesis's ReadUavLogs.
 //!
+//! - `info`, `to-csv`, `to-ulog`: summaries and conversions;
+//! - `plot FILE --series imu.p,servo.aileron -o out.png|svg`: series against log time;
+//! - `plot DIR --report OUT [--json]`: the thesis's standard figures (chapter 6.1.3) of a
+//!   flight directory, PNG and SVG, with the interval statistics per stream and format;
+//! - `bench [--json]`: `to-csv` throughput and binary-vs-text sizes on a synthetic flight,
+//!   against pyulog's `ulog2csv` on its ULog export.
+//!
 //! Exit status: 0 when every file was whole, 3 when anything was reported (damage, a file not
 //! closed cleanly; each report on stderr with the file name and offset), 2 for usage and I/O
 //! errors.

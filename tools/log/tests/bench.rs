@@ -79,6 +79,18 @@ fn bench_json_reports_sizes_rates_and_timings() {
         assert!(r["ulog2csv"]["timing"]["best_s"].as_f64().expect("timed") > 0.0);
         assert!(r["ulog2csv_over_to_csv_time"].as_f64().expect("ratio") > 0.0);
         assert_eq!(r["ulog2csv"]["files"], 5);
+        assert!(
+            r["ulog2csv"]["in_process_best_s"]
+                .as_f64()
+                .expect("in process")
+                > 0.0
+        );
+        assert!(
+            r["pyulog_in_process_over_to_csv_time"]
+                .as_f64()
+                .expect("ratio")
+                > 0.0
+        );
     } else {
         assert!(std::env::var_os("CI").is_none(), "CI installs pyulog");
         assert!(r["ulog2csv_unavailable"].is_string());
