@@ -9,6 +9,8 @@
 //! - [`write_columns_line`]: `% time,<comment>\n` (only where the format has a comment);
 //! - [`write_header`]: both, in that order;
 //! - [`write_data_line`]: `<tv_sec>.<tv_nsec, 9 digits>,<printf text of the data block>\n`;
+//! - [`write_values_line`]: the same from the record's values (a task's text log: no binary
+//!   record needed);
 //! - [`write_byte_array_line`]: the same for a byte array (each byte formatted, joined by `,`).
 //!
 //! Every line ends with `\n`. The data lines write to a [`ByteWrite`] because C's `%c` prints
@@ -17,9 +19,14 @@
 
 use core::fmt::{self, Write};
 
-use super::format::Format;
-use super::printf::{ByteWrite, RenderError, render_byte_array_bytes, render_data_block_bytes};
+use super::format::{Format, MAX_FIELDS};
+use super::printf::{
+    ByteWrite, RenderError, Value, render_byte_array_bytes, render_data_block_bytes,
+};
 use super::record::Time;
+
+/// The largest data block a format can describe: every field 8 bytes.
+const MAX_DATA_LEN: usize = MAX_FIELDS * 8;
 
 /// Writes `% format <index>: <format text>\n`.
 pub fn write_format_line<W: Write + ?Sized>(
@@ -64,6 +71,33 @@ pub fn write_data_line<W: ByteWrite + ?Sized>(
     render_data_block_bytes(out, format_text, format, data)?;
     out.write_char('\n')?;
     Ok(())
+}
+
+/// Writes the line of a data block given as values, one per field of `format` and of its
+/// type: the same bytes as [`write_data_line`] over the encoded block. Nothing is written
+/// when the values do not fit the format ([`RenderError::DataMismatch`]).
+pub fn write_values_line<W: ByteWrite + ?Sized>(
+    out: &mut W,
+    time: Time,
+    format_text: &str,
+    format: &Format,
+    values: &[Value],
+) -> Result<(), RenderError> {
+    let fields = format.fields();
+    if fields.len() != values.len() {
+        return Err(RenderError::DataMismatch);
+    }
+    let mut data = [0u8; MAX_DATA_LEN];
+    let mut len = 0;
+    for (field, value) in fields.iter().zip(values) {
+        if field.ty != value.field_type() {
+            return Err(RenderError::DataMismatch);
+        }
+        let rest = data.get_mut(len..).ok_or(RenderError::DataMismatch)?;
+        len += value.encode(rest).ok_or(RenderError::DataMismatch)?;
+    }
+    let data = data.get(..len).ok_or(RenderError::DataMismatch)?;
+    write_data_line(out, time, format_text, format, data)
 }
 
 /// Writes the line of a byte array: `<time>,<byte>,<byte>,…\n`, each byte printed with the
@@ -149,6 +183,51 @@ mod tests {
             write_data_line(&mut Buf::new(), time, text, &format, &data[..17]),
             Err(RenderError::DataMismatch)
         );
+    }
+
+    #[test]
+    fn values_lines_equal_data_lines() {
+        let text = "%hhu,%.3f,%lld,%8.2lf";
+        let format = Format::parse(text).expect("valid");
+        let values = [
+            Value::U8(200),
+            Value::F32(-0.5),
+            Value::I64(-3),
+            Value::F64(f64::NAN),
+        ];
+        let mut data = [0u8; 21];
+        let mut len = 0;
+        for v in values {
+            len += v.encode(&mut data[len..]).expect("fits");
+        }
+        assert_eq!(len, format.data_len());
+        let time = Time { sec: 12, nsec: 340 };
+        let mut from_values = Buf::new();
+        write_values_line(&mut from_values, time, text, &format, &values).expect("valid");
+        let mut from_bytes = Buf::new();
+        write_data_line(&mut from_bytes, time, text, &format, &data).expect("valid");
+        assert_eq!(
+            from_values.as_bytes(),
+            b"12.000000340,200,-0.500,-3,     nan\n"
+        );
+        assert_eq!(from_values.as_bytes(), from_bytes.as_bytes());
+        // A value of the wrong type, or too few values, writes nothing.
+        let mut out = Buf::new();
+        let wrong = [
+            Value::U8(1),
+            Value::F64(0.0),
+            Value::I64(0),
+            Value::F64(0.0),
+        ];
+        assert_eq!(
+            write_values_line(&mut out, time, text, &format, &wrong),
+            Err(RenderError::DataMismatch)
+        );
+        assert_eq!(
+            write_values_line(&mut out, time, text, &format, &values[..3]),
+            Err(RenderError::DataMismatch)
+        );
+        assert_eq!(out.as_bytes(), b"");
     }
 
     #[test]

@@ -20,6 +20,7 @@ pub mod record;
 
 pub use csv::{
     write_byte_array_line, write_columns_line, write_data_line, write_format_line, write_header,
+    write_values_line,
 };
 pub use format::{Conversion, Field, FieldType, Flags, Format, FormatError, MAX_FIELDS};
 pub use frame_log::{
