@@ -179,7 +179,14 @@ fn injected_overruns_are_detected_on_the_real_clock_and_policies_apply() {
     const IMU: u64 = 1 << 0;
     const ESTIMATOR: u64 = 1 << 1;
     let rows = timing_rows(&s);
-    for frame in 10..20 {
+    // A machine loaded enough to miss whole frames leaves gaps in the frame numbers: the
+    // injection follows frame numbers, so check the injected frames that ran.
+    let ran = |range: std::ops::Range<u64>| -> Vec<u64> {
+        range.filter(|f| rows.contains_key(f)).collect()
+    };
+    let imu_frames = ran(10..20);
+    assert!(imu_frames.len() >= 8, "{imu_frames:?}");
+    for frame in imu_frames {
         let r = &rows[&frame];
         assert_ne!(
             r["over_budget_mask"] & IMU,
@@ -187,14 +194,18 @@ fn injected_overruns_are_detected_on_the_real_clock_and_policies_apply() {
             "frame {frame}: imu over budget"
         );
         assert!(r["exec_ns_imu"] >= 3_000_000, "frame {frame}");
-        assert_ne!(
-            rows[&(frame + 1)]["reset_mask"] & IMU,
-            0,
-            "frame {}: reset policy",
-            frame + 1
-        );
+        // Reset policy: recover + init at the imu's next release (every frame).
+        if let Some((next, r)) = rows.range(frame + 1..).next() {
+            assert_ne!(
+                r["reset_mask"] & IMU,
+                0,
+                "frame {next}: reset after frame {frame}"
+            );
+        }
     }
-    for frame in [50, 51] {
+    let estimator_frames = ran(50..52);
+    assert!(!estimator_frames.is_empty());
+    for &frame in &estimator_frames {
         let r = &rows[&frame];
         assert_ne!(r["over_budget_mask"] & ESTIMATOR, 0, "frame {frame}");
         assert_ne!(
@@ -202,12 +213,12 @@ fn injected_overruns_are_detected_on_the_real_clock_and_policies_apply() {
             0,
             "frame {frame}: ran into the next frame"
         );
-        assert!(r["start_latency_ns"] < 10_000_000 || frame == 50);
+        let (next, after) = rows.range(frame + 1..).next().expect("a frame after");
+        assert!(
+            after["start_latency_ns"] >= 2_000_000 || after["missed_before"] > 0,
+            "frame {next} starts late (or after missed frames) behind frame {frame}"
+        );
     }
-    assert!(
-        rows[&51]["start_latency_ns"] >= 2_000_000,
-        "frame 51 starts late behind frame 50"
-    );
     assert!(
         rows.values().all(|r| r["reset_mask"] & ESTIMATOR == 0),
         "log policy never resets"

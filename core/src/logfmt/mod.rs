@@ -5,17 +5,23 @@
 //!   [`DataBlockWriter`]);
 //! - [`reader`]: a streaming, resynchronising reader that survives any bytes;
 //! - [`printf`]: a data block's text exactly as C's `printf` prints it;
+//! - [`csv`]: the lines of a text log / CSV conversion (`% format`, `% time,`, data lines);
 //! - [`frame_log`]: the executive's per-frame timing records as a log format.
 //!
 //! Nothing here allocates, panics or blocks; the reader and renderer are meant for hosts
 //! (`skyframe-log`), the encoders for tasks.
 
+pub mod csv;
 pub mod format;
 pub mod frame_log;
 pub mod printf;
 pub mod reader;
 pub mod record;
 
+pub use csv::{
+    write_byte_array_line, write_columns_line, write_data_line, write_format_line, write_header,
+    write_values_line,
+};
 pub use format::{Conversion, Field, FieldType, Flags, Format, FormatError, MAX_FIELDS};
 pub use frame_log::{
     FrameLogFormat, decode_frame_record, encode_frame_record, frame_log_task_names,

@@ -1,12 +1,23 @@
 //! `skyframe-log`: reads skyframe's binary flight logs (`shared/specs/log-format.md`), the
 //! successor of the thesis's ReadUavLogs.
 //!
+//! - `info`, `to-csv`, `to-ulog`: summaries and conversions;
+//! - `plot FILE --series imu.p,servo.aileron -o out.png|svg`: series against log time;
+//! - `plot DIR --report OUT [--json]`: the thesis's standard figures (chapter 6.1.3) of a
+//!   flight directory, PNG and SVG, with the interval statistics per stream and format;
+//! - `bench [--json]`: `to-csv` throughput and binary-vs-text sizes on a synthetic flight,
+//!   against pyulog's `ulog2csv` on its ULog export.
+//!
 //! Exit status: 0 when every file was whole, 3 when anything was reported (damage, a file not
 //! closed cleanly; each report on stderr with the file name and offset), 2 for usage and I/O
 //! errors.
 
+mod bench;
+mod figure;
+mod flight;
 mod info;
 mod input;
+mod plot;
 mod to_csv;
 mod to_ulog;
 
@@ -19,7 +30,7 @@ use clap::{Parser, Subcommand};
 #[command(
     name = "skyframe-log",
     version,
-    about = "Read skyframe binary flight logs: summarise them or convert them to CSV",
+    about = "Read skyframe binary flight logs: summarise, convert (CSV, ULog), plot, benchmark",
     long_about = "Read skyframe binary flight logs (shared/specs/log-format.md).\n\n\
         Damaged files (truncated tail, garbage, malformed records) are read as far as \
         possible; every problem is reported on stderr as `FILE: offset N: ...`.\n\n\
@@ -73,6 +84,58 @@ enum Command {
         #[arg(short, long, value_name = "OUT.ulg")]
         output: PathBuf,
     },
+    /// Plot series against time, or draw a flight's standard figures (`--report`)
+    ///
+    /// FILE is a flight directory (streams are `<dir>/<stream>.bin`) or one `.bin` file (its
+    /// stream is the file stem). A series is `<stream>.<column>` (docs/log-streams.md), the
+    /// unit suffix optional when unambiguous (`imu.p` is `imu.p_rad_s`), or
+    /// `<stream>.<index>.<column>`. The x axis is the log TIME in seconds from the first
+    /// record. Series of one unit share a panel.
+    ///
+    /// `--report DIR` writes, as PNG and SVG: gps_validity, gps_track (north/east metres
+    /// from the first valid fix), gps_accuracy (DOPs, standard deviations), intervals
+    /// (between consecutive entries of every stream and format, mean/max in the legend),
+    /// imu_rates_vs_aileron, battery. A figure whose streams are missing is skipped with a
+    /// note on stderr.
+    #[command(group(clap::ArgGroup::new("what").required(true).args(["series", "report"])))]
+    Plot {
+        /// Flight directory or binary log file.
+        #[arg(value_name = "FILE|DIR")]
+        file: PathBuf,
+        /// Series to plot, comma-separated or repeated: `imu.p,servo.aileron`.
+        #[arg(long, value_name = "STREAM.COLUMN", requires = "output")]
+        series: Vec<String>,
+        /// The image to write; its extension (.png or .svg) chooses the format.
+        #[arg(short, long, value_name = "OUT.png|OUT.svg", conflicts_with = "report")]
+        output: Option<PathBuf>,
+        /// Write the standard figures into this directory (created if missing).
+        #[arg(long, value_name = "DIR")]
+        report: Option<PathBuf>,
+        /// With --report: print a JSON summary (files, skipped figures, interval
+        /// statistics per stream and format) on stdout.
+        #[arg(long, requires = "report")]
+        json: bool,
+        /// Image size in pixels.
+        #[arg(long, value_name = "WxH", default_value = "1280x960", value_parser = plot::parse_size)]
+        size: (u32, u32),
+    },
+    /// Benchmark: to-csv throughput and binary vs text size on a synthetic flight, against
+    /// pyulog's ulog2csv on the ULog export of the same flight
+    Bench {
+        /// Print the results as JSON (otherwise a table).
+        #[arg(long)]
+        json: bool,
+        /// Minutes of flight to synthesise.
+        #[arg(long, value_name = "MINUTES", default_value_t = 10.0)]
+        minutes: f64,
+        /// Timed runs of each converter; the fastest counts.
+        #[arg(long, value_name = "N", default_value_t = 3)]
+        runs: u32,
+        /// Also keep the synthetic flight's streams in this directory (created if missing),
+        /// e.g. to try `plot --report` on them.
+        #[arg(long, value_name = "DIR")]
+        keep_flight: Option<PathBuf>,
+    },
 }
 
 /// How a run went, worst first when combined.
@@ -93,12 +156,55 @@ impl Outcome {
     }
 }
 
+/// Prints `value` as pretty JSON on stdout; a closed pipe is an error, not a panic.
+pub fn print_json(value: &impl serde::Serialize) -> Result<(), String> {
+    use std::io::Write;
+    let text = serde_json::to_string_pretty(value).map_err(|e| format!("JSON: {e}"))?;
+    let mut out = std::io::stdout().lock();
+    writeln!(out, "{text}")
+        .and_then(|()| out.flush())
+        .map_err(|e| format!("stdout: {e}"))
+}
+
+/// Prints `text` on stdout; a closed pipe is an error, not a panic.
+pub fn print_text(text: &str) -> Result<(), String> {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    out.write_all(text.as_bytes())
+        .and_then(|()| out.flush())
+        .map_err(|e| format!("stdout: {e}"))
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let outcome = match cli.command {
         Command::Info { files, gap_s } => info::run(&files, gap_s),
         Command::ToCsv { inputs, out_dir } => to_csv::run(&inputs, out_dir.as_deref()),
         Command::ToUlog { file, output } => to_ulog::run(&file, &output),
+        Command::Plot {
+            file,
+            series,
+            output,
+            report,
+            json,
+            size,
+        } => {
+            let options = plot::PlotOptions { size };
+            match (report, output) {
+                (Some(dir), _) => plot::run_report(&file, &dir, json, &options),
+                (None, Some(output)) => plot::run_series(&file, &series, &output, &options),
+                (None, None) => {
+                    eprintln!("skyframe-log: plot: give --series with -o, or --report DIR");
+                    Outcome::Failed
+                }
+            }
+        }
+        Command::Bench {
+            json,
+            minutes,
+            runs,
+            keep_flight,
+        } => bench::run(json, minutes, runs, keep_flight.as_deref()),
     };
     outcome.exit_code()
 }

@@ -2,15 +2,14 @@
 //! conversion") says.
 
 use std::collections::HashMap;
-use std::fmt::Write as _;
 use std::fs::File;
 use std::io::{self, BufWriter, Write};
 use std::path::{Path, PathBuf};
 
 use indicatif::ProgressBar;
 use skyframe_core::logfmt::{
-    ByteWrite, Event, Format, LogReader, Record, RenderError, Time, render_byte_array_bytes,
-    render_data_block_bytes,
+    ByteWrite, Event, Format, LogReader, Record, RenderError, write_byte_array_line,
+    write_data_line, write_header,
 };
 
 use crate::Outcome;
@@ -19,6 +18,15 @@ use crate::input::{expand, problem_line, progress_bar, read_file, report_line};
 const INDEXES: usize = 256;
 
 pub fn run(inputs: &[PathBuf], out_dir: Option<&Path>) -> Outcome {
+    convert(inputs, out_dir, true)
+}
+
+/// [`run`] without a progress bar, for timing it (`bench`).
+pub fn run_quiet(inputs: &[PathBuf], out_dir: Option<&Path>) -> Outcome {
+    convert(inputs, out_dir, false)
+}
+
+fn convert(inputs: &[PathBuf], out_dir: Option<&Path>, progress: bool) -> Outcome {
     let files = match expand(inputs) {
         Ok(files) => files,
         Err(message) => {
@@ -35,7 +43,11 @@ pub fn run(inputs: &[PathBuf], out_dir: Option<&Path>) -> Outcome {
             return Outcome::Failed;
         }
     }
-    let bar = progress_bar(&files);
+    let bar = if progress {
+        progress_bar(&files)
+    } else {
+        ProgressBar::hidden()
+    };
     let mut reader = Box::new(LogReader::new());
     let mut outcome = Outcome::Whole;
     // Output name prefix → the input that writes it: two inputs of the same stem would
@@ -164,8 +176,8 @@ impl<'a> Converter<'a> {
                     time,
                     data,
                     format,
-                } => self.write_record(offset, index, time, format, |out, text, format| {
-                    render_data_block_bytes(out, text, format, data)
+                } => self.write_record(offset, index, format, |out, text, format| {
+                    write_data_line(out, time, text, format, data)
                 }),
                 Record::ByteArray {
                     index,
@@ -173,8 +185,8 @@ impl<'a> Converter<'a> {
                     bytes,
                     format,
                     ..
-                } => self.write_record(offset, index, time, format, |out, text, format| {
-                    render_byte_array_bytes(out, text, format, bytes)
+                } => self.write_record(offset, index, format, |out, text, format| {
+                    write_byte_array_line(out, time, text, format, bytes)
                 }),
                 Record::BeginData { .. } | Record::EndData { .. } => {}
             },
@@ -195,7 +207,6 @@ impl<'a> Converter<'a> {
         &mut self,
         offset: u64,
         index: u8,
-        time: Time,
         format: &Format,
         render: impl FnOnce(&mut Line, &str, &Format) -> Result<(), RenderError>,
     ) {
@@ -210,7 +221,6 @@ impl<'a> Converter<'a> {
             .flatten()
             .unwrap_or_default();
         self.line.0.clear();
-        let _ = write!(self.line, "{time},");
         if render(&mut self.line, &text, format).is_err() {
             // The reader only yields records that match their format; this is a defect.
             self.reported = true;
@@ -223,7 +233,6 @@ impl<'a> Converter<'a> {
             );
             return;
         }
-        self.line.0.push(b'\n');
         if let Err(e) = self.write_line(slot, index, text) {
             self.error = Some(e);
         }
@@ -255,10 +264,10 @@ impl<'a> Converter<'a> {
             // restarts) prints no new header.
             let header = (text, comment);
             if out.header.as_ref() != Some(&header) {
-                writeln!(out.writer, "% format {index}: {}", header.0)?;
-                if let Some(comment) = &header.1 {
-                    writeln!(out.writer, "% time,{comment}")?;
-                }
+                let mut lines = String::new();
+                write_header(&mut lines, index, &header.0, header.1.as_deref())
+                    .map_err(|_| io::Error::other("header could not be formatted"))?;
+                out.writer.write_all(lines.as_bytes())?;
                 out.header = Some(header);
             }
         }
