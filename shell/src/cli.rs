@@ -5,14 +5,14 @@
 
 use crate::bench;
 use crate::check_schedule::check_file;
-use crate::flight::{Devices, FlightPlan, fly, render_flight};
+use crate::flight::{Devices, FlightPlan, LogSettings, fly, render_flight};
 use crate::host::{RunOptions, TimerCheckConfig, stop_on_signals};
 use crate::platform::{Platform, RtConfig};
 use crate::vehicle::VehicleConfig;
 use clap::{Args, Parser, Subcommand};
 use skyframe_core::executive::{FaultPlan, OverrunInjection};
 use skyframe_core::schedule::{FrameTable, SHIPPED};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
@@ -97,6 +97,10 @@ pub struct FlightArgs {
     /// time (UTC). Default: `flights`, or `[log] dir` of the vehicle file.
     #[arg(long)]
     pub log_dir: Option<PathBuf>,
+    /// Write this stream (`imu`, `gps`, `servo`, `health`, `executive`) as CSV text instead
+    /// of binary. Repeatable.
+    #[arg(long = "text-log", value_name = "STREAM")]
+    pub text_log: Vec<String>,
     /// Milliseconds of timer measurement before the first frame (0 skips the check).
     #[arg(long, default_value_t = 200)]
     pub timer_check_ms: u64,
@@ -302,7 +306,8 @@ fn run<P: Platform>(platform: &P, command: Command) -> Result<ExitCode, String> 
             );
             let mut flight = args.flight;
             flight.duration = flight.duration.or(Some(10.0));
-            fly_and_report(platform, Devices::None, &flight, Path::new("flights"))
+            let log = crate::vehicle::LogConfig::default();
+            fly_and_report(platform, Devices::None, &flight, &log)
         }
         Command::Run(args) => {
             let vehicle = VehicleConfig::load(&args.vehicle)?;
@@ -310,7 +315,7 @@ fn run<P: Platform>(platform: &P, command: Command) -> Result<ExitCode, String> 
                 platform,
                 Devices::Serial(&vehicle),
                 &args.flight,
-                &vehicle.log.dir,
+                &vehicle.log,
             )
         }
     }
@@ -321,7 +326,7 @@ fn fly_and_report<P: Platform>(
     platform: &P,
     devices: Devices<'_>,
     args: &FlightArgs,
-    default_log_dir: &Path,
+    log: &crate::vehicle::LogConfig,
 ) -> Result<ExitCode, String> {
     let faults = fault_plan(&SHIPPED, &args.inject_overrun)?;
     let stop = stop_flag()?;
@@ -329,7 +334,8 @@ fn fly_and_report<P: Platform>(
         platform,
         &SHIPPED,
         FlightPlan {
-            log_dir: args.log_dir.as_deref().unwrap_or(default_log_dir),
+            log_dir: args.log_dir.as_deref().unwrap_or(&log.dir),
+            log: LogSettings::from_config(log, &args.text_log),
             devices,
             options: RunOptions {
                 faults,

@@ -4,7 +4,7 @@
 
 use crate::host::{HostError, RunOptions, run_executive};
 use crate::idle::{IdleTask, idle_tasks};
-use crate::logwriter::{LogStream, LogWriter, StreamStatus, WriterConfig};
+use crate::logwriter::{LogStream, LogWriter, StreamMode, StreamStatus, WriterConfig};
 use crate::platform::Platform;
 use crate::serial::{DevicePort, PortConfig, PortState, PortStatus, check_opens, spawn_port};
 use crate::summary::SummaryReport;
@@ -45,8 +45,32 @@ pub enum Devices<'a> {
 
 pub struct FlightPlan<'a> {
     pub log_dir: &'a Path,
+    pub log: LogSettings,
     pub devices: Devices<'a>,
     pub options: RunOptions<'a>,
+}
+
+/// How the flight's logs are written.
+#[derive(Clone, Debug)]
+pub struct LogSettings {
+    /// Streams written as CSV text instead of binary.
+    pub text_streams: Vec<String>,
+    pub rotate_bytes: u64,
+    pub flush_every: std::time::Duration,
+    pub fsync_every: std::time::Duration,
+}
+
+impl LogSettings {
+    pub fn from_config(log: &crate::vehicle::LogConfig, extra_text: &[String]) -> Self {
+        let mut text_streams = log.text.clone();
+        text_streams.extend(extra_text.iter().cloned());
+        Self {
+            text_streams,
+            rotate_bytes: log.rotate_mb.saturating_mul(1024 * 1024),
+            flush_every: std::time::Duration::from_millis(log.flush_ms),
+            fsync_every: std::time::Duration::from_millis(log.fsync_ms),
+        }
+    }
 }
 
 /// What happened to one log stream.
@@ -93,12 +117,18 @@ pub struct FlightReport {
 /// The log streams of one flight, and their statuses for the report.
 struct Streams {
     writer: LogWriter,
+    text: Vec<String>,
     statuses: Vec<(String, Arc<StreamStatus>)>,
 }
 
 impl Streams {
     fn open(&mut self, name: &str, ring_bytes: usize) -> LogStream {
-        let stream = self.writer.stream(name, ring_bytes);
+        let mode = if self.text.iter().any(|t| t == name) {
+            StreamMode::Text
+        } else {
+            StreamMode::Binary
+        };
+        let stream = self.writer.stream_as(name, ring_bytes, mode);
         self.statuses
             .push((name.to_string(), Arc::clone(&stream.status)));
         stream
@@ -149,7 +179,13 @@ pub fn fly<P: Platform>(
         )
     })?;
     let mut streams = Streams {
-        writer: LogWriter::new(WriterConfig::new(flight_dir.clone())),
+        writer: LogWriter::new(WriterConfig {
+            rotate_bytes: plan.log.rotate_bytes,
+            flush_every: plan.log.flush_every,
+            fsync_every: plan.log.fsync_every,
+            ..WriterConfig::new(flight_dir.clone())
+        }),
+        text: plan.log.text_streams.clone(),
         statuses: Vec::new(),
     };
     let timing_stream = streams.open("executive", TIMING_RING_BYTES);

@@ -21,5 +21,6 @@ pub mod ring;
 pub mod serial;
 pub mod stats;
 pub mod summary;
+pub mod textlog;
 pub mod timing_log;
 pub mod vehicle;

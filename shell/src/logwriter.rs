@@ -12,6 +12,7 @@
 //! A write error (disk full) stops that stream with a visible flag; everything else keeps
 //! going.
 
+use crate::textlog::{TextStream, Written};
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
@@ -115,6 +116,17 @@ struct Drain {
     file_bytes: u64,
     sequence: u32,
     last_time: [u8; 8],
+    /// Some: this stream is written as CSV text instead of binary.
+    text: Option<TextStream>,
+}
+
+/// How a stream is written.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StreamMode {
+    /// `<name>.bin` in the binary log format (the default: smaller, faster).
+    Binary,
+    /// `<name>.<index>.csv`, the very lines `skyframe-log to-csv` prints.
+    Text,
 }
 
 /// Starts the writer thread. Add streams with [`LogWriter::stream`] before `start`.
@@ -140,6 +152,11 @@ impl LogWriter {
     /// A new stream writing `<dir>/<name>.bin` (then `<name>.1.bin`, … on rotation), with a
     /// ring of `ring_bytes`.
     pub fn stream(&mut self, name: &str, ring_bytes: usize) -> LogStream {
+        self.stream_as(name, ring_bytes, StreamMode::Binary)
+    }
+
+    /// A new stream written as `mode` says.
+    pub fn stream_as(&mut self, name: &str, ring_bytes: usize, mode: StreamMode) -> LogStream {
         let (producer, consumer) = rtrb::RingBuffer::new(ring_bytes);
         let status = Arc::new(StreamStatus::default());
         self.drains.push(Drain {
@@ -152,6 +169,7 @@ impl LogWriter {
             file_bytes: 0,
             sequence: 0,
             last_time: [0; 8],
+            text: (mode == StreamMode::Text).then(|| TextStream::new(name)),
         });
         LogStream { producer, status }
     }
@@ -255,6 +273,9 @@ impl Drain {
     }
 
     fn close(&mut self) -> std::io::Result<()> {
+        if let Some(text) = self.text.as_mut() {
+            text.close()?;
+        }
         if let Some(mut w) = self.file.take() {
             let written = self.status.records_written.load(Ordering::Relaxed);
             w.flush()?;
@@ -280,6 +301,15 @@ impl Drain {
                 }
             }
             _ => {}
+        }
+        if let Some(text) = self.text.as_mut() {
+            let outcome = text.write(record, &config.dir, config.rotate_bytes, files)?;
+            if let Written::Unrenderable = outcome {
+                self.status.records_lost.fetch_add(1, Ordering::Relaxed);
+            } else {
+                self.status.records_written.fetch_add(1, Ordering::Relaxed);
+            }
+            return Ok(());
         }
         if self.file.is_none() {
             self.open(&config.dir, files)?;
@@ -351,13 +381,16 @@ impl Drain {
             return;
         }
         let written = self.status.records_written.load(Ordering::Relaxed);
-        let result = self.file.as_mut().map_or(Ok(()), |w| {
-            w.flush()?;
-            if sync {
-                w.get_ref().sync_data()
-            } else {
-                Ok(())
-            }
+        let text = self.text.as_mut().map_or(Ok(()), |t| t.flush(sync));
+        let result = text.and_then(|()| {
+            self.file.as_mut().map_or(Ok(()), |w| {
+                w.flush()?;
+                if sync {
+                    w.get_ref().sync_data()
+                } else {
+                    Ok(())
+                }
+            })
         });
         if result.is_ok() && sync {
             self.status.records_synced.store(written, Ordering::Relaxed);

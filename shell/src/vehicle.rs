@@ -18,6 +18,10 @@
 //!
 //! [log]
 //! dir = "flights"
+//! text = ["gps"]         # streams written as CSV instead of binary
+//! rotate_mb = 64
+//! flush_ms = 100         # to the OS: survives kill -9
+//! fsync_ms = 1000        # to the disk: survives a power cut
 //! ```
 //!
 //! Every error is one line naming the file and the key (or line and column).
@@ -52,22 +56,30 @@ pub struct DeviceConfig {
 }
 
 #[derive(Clone, Debug, Deserialize, PartialEq, Eq)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, default)]
 pub struct LogConfig {
-    #[serde(default = "default_log_dir")]
+    /// Flights go into new subdirectories of this one, named by their start time.
     pub dir: PathBuf,
+    /// Streams written as CSV text instead of binary (`imu`, `gps`, …).
+    pub text: Vec<String>,
+    /// A log file rotates when it reaches this size.
+    pub rotate_mb: u64,
+    /// Written data goes to the OS this often: after `kill -9` it is there.
+    pub flush_ms: u64,
+    /// …and to the disk this often: after a power cut it is there.
+    pub fsync_ms: u64,
 }
 
 impl Default for LogConfig {
     fn default() -> Self {
         Self {
-            dir: default_log_dir(),
+            dir: PathBuf::from("flights"),
+            text: Vec::new(),
+            rotate_mb: 64,
+            flush_ms: 100,
+            fsync_ms: 1000,
         }
     }
-}
-
-fn default_log_dir() -> PathBuf {
-    PathBuf::from("flights")
 }
 
 /// Baud rates a UART can be set to; anything else is a typo.
@@ -85,6 +97,9 @@ impl VehicleConfig {
 
     pub fn parse(text: &str) -> Result<Self, String> {
         let config: Self = toml::from_str(text).map_err(|e| toml_error_line(&e, text))?;
+        if config.log.rotate_mb == 0 || config.log.flush_ms == 0 || config.log.fsync_ms == 0 {
+            return Err("log.rotate_mb, log.flush_ms and log.fsync_ms must be above 0".into());
+        }
         for (name, device) in config.devices() {
             if !BAUD_RATES.contains(&device.baud) {
                 return Err(format!(
