@@ -8,14 +8,14 @@ use skyframe_tests::{scratch, skyframe, workspace};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-/// `skyframe sim` logging into a fresh scratch directory (never the caller's `flights/`).
+/// `skyframe idle` (the executive alone) logging into a fresh scratch directory (never the caller's `flights/`).
 fn sim(test: &str) -> Command {
     let mut cmd = skyframe();
-    cmd.arg("sim").arg("--log-dir").arg(scratch(test));
+    cmd.arg("idle").arg("--log-dir").arg(scratch(test));
     cmd
 }
 
-/// `skyframe sim --json` for `seconds` without real-time settings (tests run beside other
+/// `skyframe idle --json` for `seconds` without real-time settings (tests run beside other
 /// tests), plus `extra` arguments; the run must succeed.
 fn sim_json(test: &str, seconds: &str, extra: &[&str]) -> Value {
     let out = sim(test)
@@ -350,7 +350,7 @@ fn real_time_refusals_are_reported_once_and_the_run_goes_on() {
         ])
         .arg(skyframe_tests::binary("skyframe-linux", "skyframe"))
         .args([
-            "sim",
+            "idle",
             "--duration",
             "0.3",
             "--json",
@@ -495,7 +495,7 @@ fn a_run_logs_its_timing_records_readably_for_skyframe_log() {
     let dir = scratch("timing-log");
     let out = skyframe()
         .args([
-            "sim",
+            "idle",
             "--duration",
             "0.5",
             "--json",

@@ -4,9 +4,13 @@
 //! spin: a run is deterministic and as fast as the machine allows.
 //!
 //! [`plant`] is the simulated airplane: 6-DOF dynamics, wind, ground contact and the sensor
-//! models, all in virtual time and deterministic for a seed.
+//! models, all in virtual time and deterministic for a seed. [`world`] puts the airplane's
+//! devices on the wire, byte for byte as the hardware's, and [`timer`] advances the world
+//! between the executive's frames.
 
 pub mod plant;
+pub mod timer;
+pub mod world;
 
 use skyframe_core::executive::{Clock, FrameTimer};
 use std::sync::atomic::{AtomicU64, Ordering};

@@ -8,6 +8,7 @@ use crate::check_schedule::check_file;
 use crate::flight::{Devices, FlightPlan, LogSettings, fly, render_flight};
 use crate::host::{RunOptions, TimerCheckConfig, stop_on_signals};
 use crate::platform::{Platform, RtConfig};
+use crate::simflight::VirtualTime;
 use crate::vehicle::VehicleConfig;
 use clap::{Args, Parser, Subcommand};
 use skyframe_core::executive::{FaultPlan, OverrunInjection};
@@ -37,8 +38,11 @@ pub struct Cli {
 
 #[derive(Subcommand, Debug)]
 pub enum Command {
-    /// Fly the simulated airplane (until the simulator lands: the executive with idle tasks).
+    /// Fly the simulated airplane: the whole on-board system against simulated devices.
     Sim(SimArgs),
+    /// Fly the executive with no devices (idle tasks but the watchdog and logging): the
+    /// schedule, its timing and its logs alone.
+    Idle(IdleArgs),
     /// Fly the real airplane: devices on the serial ports `--vehicle` names.
     Run(RunArgs),
     /// Validate a schedule file and print its frame table, load and slack.
@@ -114,6 +118,18 @@ pub struct FlightArgs {
 
 #[derive(Args, Debug)]
 pub struct SimArgs {
+    /// Virtual time: as fast as the machine allows, deterministic for a seed.
+    #[arg(long)]
+    pub fast: bool,
+    /// Seed of every random process of the simulation (noise, gusts, GPS jitter).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    #[command(flatten)]
+    pub flight: FlightArgs,
+}
+
+#[derive(Args, Debug)]
+pub struct IdleArgs {
     #[command(flatten)]
     pub flight: FlightArgs,
 }
@@ -300,10 +316,20 @@ fn run<P: Platform>(platform: &P, command: Command) -> Result<ExitCode, String> 
             Ok(ExitCode::SUCCESS)
         }
         Command::Sim(args) => {
-            eprintln!(
-                "skyframe sim: the simulated airplane is not built yet (issue 5); flying the \
-                 executive with idle tasks"
-            );
+            let world = skyframe_sim::world::cruise_world(args.seed)?;
+            let mut flight = args.flight;
+            flight.duration = flight.duration.or(Some(60.0));
+            let log = crate::vehicle::LogConfig::default();
+            let devices = Devices::Sim(Box::new(world));
+            if args.fast {
+                // The timer check measures the OS timer, which virtual time does not use.
+                flight.timer_check_ms = 0;
+                fly_and_report(&VirtualTime, devices, &flight, &log)
+            } else {
+                fly_and_report(platform, devices, &flight, &log)
+            }
+        }
+        Command::Idle(args) => {
             let mut flight = args.flight;
             flight.duration = flight.duration.or(Some(10.0));
             let log = crate::vehicle::LogConfig::default();

@@ -7,12 +7,14 @@ use crate::idle::{IdleTask, idle_tasks};
 use crate::logwriter::{LogStream, LogWriter, StreamMode, StreamStatus, WriterConfig};
 use crate::platform::Platform;
 use crate::serial::{DevicePort, PortConfig, PortState, PortStatus, check_opens, spawn_port};
+use crate::simflight::{SimPlatform, device_rings};
 use crate::summary::SummaryReport;
 use crate::timing_log::TimingLog;
 use crate::vehicle::VehicleConfig;
 use serde::Serialize;
 use skyframe_core::comm::LatestSlot;
 use skyframe_core::devices::DecoderStats;
+use skyframe_core::devices::gps::SentenceKind;
 use skyframe_core::devices::gps::{GpsConfig, GpsFix};
 use skyframe_core::devices::imu::ImuSample;
 use skyframe_core::executive::Task;
@@ -22,6 +24,7 @@ use skyframe_core::tasks::health::HealthTask;
 use skyframe_core::tasks::imu::ImuTask;
 use skyframe_core::tasks::logging::LoggingTask;
 use skyframe_core::tasks::servo::{ComputerCommand, PilotInput, ServoTask};
+use skyframe_sim::world::SimWorld;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -41,7 +44,12 @@ pub enum Devices<'a> {
     None,
     /// Serial ports, as `vehicle.toml` says.
     Serial(&'a VehicleConfig),
+    /// The simulated airplane's devices, through in-process rings.
+    Sim(Box<SimWorld>),
 }
+
+/// Staleness timeouts of the simulated devices: five periods of each.
+const SIM_STALE_NS: [u64; 3] = [50 * MS, 500 * MS, 100 * MS];
 
 pub struct FlightPlan<'a> {
     pub log_dir: &'a Path,
@@ -108,6 +116,10 @@ pub struct DeviceReport {
 pub struct FlightReport {
     #[serde(flatten)]
     pub summary: SummaryReport,
+    /// Wall-clock time the flight took, and flight time per wall-clock time (virtual time
+    /// runs faster than real time).
+    pub wall_s: f64,
+    pub speed_up: f64,
     pub flight_dir: PathBuf,
     pub log_files: Vec<PathBuf>,
     pub log_streams: Vec<StreamReport>,
@@ -118,6 +130,7 @@ pub struct FlightReport {
 struct Streams {
     writer: LogWriter,
     text: Vec<String>,
+    wait_when_full: bool,
     statuses: Vec<(String, Arc<StreamStatus>)>,
 }
 
@@ -128,7 +141,8 @@ impl Streams {
         } else {
             StreamMode::Binary
         };
-        let stream = self.writer.stream_as(name, ring_bytes, mode);
+        let mut stream = self.writer.stream_as(name, ring_bytes, mode);
+        stream.set_wait_when_full(self.wait_when_full);
         self.statuses
             .push((name.to_string(), Arc::clone(&stream.status)));
         stream
@@ -153,7 +167,7 @@ pub fn fly<P: Platform>(
 ) -> Result<FlightReport, String> {
     // Ports first: a typo in vehicle.toml is said before anything is created.
     let port_configs: Vec<(&'static str, PortConfig, u64)> = match &plan.devices {
-        Devices::None => Vec::new(),
+        Devices::None | Devices::Sim(_) => Vec::new(),
         Devices::Serial(vehicle) => vehicle
             .devices()
             .into_iter()
@@ -172,6 +186,7 @@ pub fn fly<P: Platform>(
     }
 
     let started = SystemTime::now();
+    let wall = std::time::Instant::now();
     let flight_dir = crate::flightdir::create(plan.log_dir, started).map_err(|e| {
         format!(
             "cannot create a flight directory in {}: {e}",
@@ -186,6 +201,7 @@ pub fn fly<P: Platform>(
             ..WriterConfig::new(flight_dir.clone())
         }),
         text: plan.log.text_streams.clone(),
+        wait_when_full: platform.virtual_time(),
         statuses: Vec::new(),
     };
     let timing_stream = streams.open("executive", TIMING_RING_BYTES);
@@ -206,6 +222,21 @@ pub fn fly<P: Platform>(
             join,
         });
         device_ports.push((name, DevicePort::new(handle.rx, handle.tx), log, stale_ns));
+    }
+
+    let mut sim = None;
+    if let Devices::Sim(world) = plan.devices {
+        let (ports, link) = device_rings();
+        let [imu, gps, servo] = ports;
+        for ((name, port), stale_ns) in [("imu", imu), ("gps", gps), ("servo", servo)]
+            .into_iter()
+            .zip(SIM_STALE_NS)
+        {
+            let log = streams.open(name, TASK_RING_BYTES);
+            device_ports.push((name, port, log, stale_ns));
+        }
+        let truth = streams.open("truth", TASK_RING_BYTES);
+        sim = Some((world, link, truth));
     }
 
     let writer = streams.writer.start().map_err(|e| {
@@ -243,7 +274,8 @@ pub fn fly<P: Platform>(
             "gps" => {
                 let config = GpsConfig {
                     stale_timeout_ns: stale_ns,
-                    ..GpsConfig::default()
+                    // The simulated receiver ends each epoch with POS: no epoch of delay.
+                    epoch_end: sim.is_some().then_some(SentenceKind::AshtechPos),
                 };
                 gps_task = Some(GpsTask::new(port, log, config, &gps_fixes));
             }
@@ -270,7 +302,16 @@ pub fn fly<P: Platform>(
         log_time_origin_ns: time_origin_ns,
         ..plan.options
     };
-    let result = run_executive(platform, table, &mut tasks, options, |r| timing.record(r));
+    let result = match sim {
+        Some((world, link, truth)) => {
+            let sim_platform =
+                SimPlatform::new(platform, *world, link, Some(truth), time_origin_ns);
+            run_executive(&sim_platform, table, &mut tasks, options, |r| {
+                timing.record(r)
+            })
+        }
+        None => run_executive(platform, table, &mut tasks, options, |r| timing.record(r)),
+    };
     drop(tasks);
 
     // Shut down in data order: device threads (their last output went out with the
@@ -287,7 +328,13 @@ pub fn fly<P: Platform>(
     };
     for d in serial {
         let _ = d.join.join();
-        devices.push(device_report(d.name, &d.config, &d.status, &stats(d.name)));
+        let port = (d.config.path.clone(), d.status);
+        devices.push(device_report(d.name, Some(&port), &stats(d.name)));
+    }
+    if devices.is_empty() && imu_task.is_some() {
+        for name in ["imu", "gps", "servo"] {
+            devices.push(device_report(name, None, &stats(name)));
+        }
     }
     timing.finish();
     let log_files = writer.finish();
@@ -295,7 +342,10 @@ pub fn fly<P: Platform>(
 
     let mut report = SummaryReport::from(&summary);
     report.set_watchdog(watchdog.report());
+    let wall_s = wall.elapsed().as_secs_f64();
     Ok(FlightReport {
+        speed_up: report.elapsed_s / wall_s.max(1e-9),
+        wall_s,
         summary: report,
         flight_dir,
         log_files,
@@ -314,27 +364,29 @@ pub fn fly<P: Platform>(
     })
 }
 
+/// `port` is the serial port's path and status; `None` for the simulator's in-process rings.
 fn device_report(
     name: &'static str,
-    config: &PortConfig,
-    port: &PortStatus,
+    port: Option<&(PathBuf, Arc<PortStatus>)>,
     stats: &DecoderStats,
 ) -> DeviceReport {
-    let state = match port.state() {
-        PortState::Opening => "opening",
-        PortState::Open => "open",
-        PortState::Lost => "lost",
-        PortState::Closed => "closed",
+    let state = match port.map(|(_, s)| s.state()) {
+        Some(PortState::Opening) => "opening",
+        Some(PortState::Open) => "open",
+        Some(PortState::Lost) => "lost",
+        Some(PortState::Closed) => "closed",
+        None => "simulated",
     };
+    let counter = |f: fn(&PortStatus) -> u64| port.map_or(0, |(_, s)| f(s));
     DeviceReport {
         name,
-        port: config.path.clone(),
+        port: port.map_or_else(|| PathBuf::from("(simulator)"), |(p, _)| p.clone()),
         port_state: state.into(),
-        opens: port.opens.load(Ordering::Relaxed),
-        losses: port.losses.load(Ordering::Relaxed),
-        bytes_in: port.bytes_in.load(Ordering::Relaxed),
-        bytes_out: port.bytes_out.load(Ordering::Relaxed),
-        bytes_dropped: port.bytes_dropped.load(Ordering::Relaxed),
+        opens: counter(|s| u64::from(s.opens.load(Ordering::Relaxed))) as u32,
+        losses: counter(|s| u64::from(s.losses.load(Ordering::Relaxed))) as u32,
+        bytes_in: counter(|s| s.bytes_in.load(Ordering::Relaxed)),
+        bytes_out: counter(|s| s.bytes_out.load(Ordering::Relaxed)),
+        bytes_dropped: counter(|s| s.bytes_dropped.load(Ordering::Relaxed)),
         frames: stats.frames,
         bad_checksum: stats.bad_checksum,
         framing_errors: stats.framing_errors,

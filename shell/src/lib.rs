@@ -19,6 +19,7 @@ pub mod logwriter;
 pub mod platform;
 pub mod ring;
 pub mod serial;
+pub mod simflight;
 pub mod stats;
 pub mod summary;
 pub mod textlog;

@@ -75,11 +75,26 @@ pub struct StreamStatus {
 pub struct LogStream {
     producer: rtrb::Producer<u8>,
     pub status: Arc<StreamStatus>,
+    wait_when_full: bool,
 }
 
 impl LogStream {
+    /// In virtual time, wait for the writer instead of dropping: there is no deadline to
+    /// miss, and a deterministic run must log every record.
+    pub fn set_wait_when_full(&mut self, wait: bool) {
+        self.wait_when_full = wait;
+    }
+
     /// Queues one encoded record; `false` (and a count) when it does not fit whole.
     pub fn push_record(&mut self, record: &[u8]) -> bool {
+        if self.wait_when_full {
+            while self.producer.slots() < record.len()
+                && record.len() <= self.producer.buffer().capacity()
+                && !self.producer.is_abandoned()
+            {
+                std::thread::yield_now();
+            }
+        }
         if self.producer.slots() < record.len() {
             self.status.records_dropped.fetch_add(1, Ordering::Relaxed);
             return false;
@@ -171,7 +186,11 @@ impl LogWriter {
             last_time: [0; 8],
             text: (mode == StreamMode::Text).then(|| TextStream::new(name)),
         });
-        LogStream { producer, status }
+        LogStream {
+            producer,
+            status,
+            wait_when_full: false,
+        }
     }
 
     pub fn start(self) -> std::io::Result<WriterHandle> {

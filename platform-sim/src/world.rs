@@ -1,0 +1,436 @@
+//! The simulated world around the flight computer: the airplane, its three devices speaking
+//! the exact wire protocols of `docs/protocols.md`, the pilot's sticks, and the servo board
+//! that chooses between pilot and computer.
+//!
+//! [`SimWorld::advance_to`] moves everything to a point in time: the plant integrates in
+//! 1 ms steps; the IMU sends a frame every 10 ms, the GPS its sentences whenever the receiver
+//! model delivers a solution (jittery, as the seed's was), the board a report every 20 ms;
+//! the computer's command frames are read back and applied with the board's rules. Where
+//! the bytes go ([`DeviceLink`]) is the caller's: rings in process, pseudo-terminals for
+//! `skyframe-sim --pty`.
+
+use crate::plant::sensors::{GpsFixType, GpsSample};
+use crate::plant::{ActuatorCommands, Plant, Truth};
+use skyframe_core::devices::gps::{
+    FixDimension, FixQuality, GpsFix, SentenceKind, Talker, encode_sentence,
+};
+use skyframe_core::devices::imu::{
+    IMU_FRAME_LEN, ImuMeasurement, ImuSlowRecord, ImuStatus, ImuStreamEncoder,
+};
+use skyframe_core::devices::servo::{
+    BoardStatus, PILOT_FRAME_LEN, PilotReport, ServoCommand, ServoCommandDecoder,
+    encode_pilot_frame, pulse_us_to_surface, pulse_us_to_throttle, surface_to_pulse_us,
+    throttle_to_pulse_us,
+};
+
+const MS: u64 = 1_000_000;
+const PLANT_STEP_NS: u64 = MS;
+const IMU_PERIOD_NS: u64 = 10 * MS;
+const BOARD_PERIOD_NS: u64 = 20 * MS;
+/// The board keeps following the computer for this long after its last command frame, then
+/// falls back to the pilot (the computer has died).
+const COMMAND_TIMEOUT_NS: u64 = 100 * MS;
+/// UTC time of day at simulation time zero (noon): GPS sentences carry time of day.
+const UTC_START_MS: u64 = 12 * 3_600_000;
+
+/// Which device a byte stream belongs to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Device {
+    Imu,
+    Gps,
+    Servo,
+}
+
+/// Where the devices' bytes go and where the computer's commands come from.
+pub trait DeviceLink {
+    /// Bytes a device sends to the flight computer.
+    fn send_to_computer(&mut self, device: Device, bytes: &[u8]);
+    /// Bytes the flight computer sent to the servo board since the last call, into `buf`.
+    fn receive_from_computer(&mut self, buf: &mut [u8]) -> usize;
+}
+
+/// The pilot's transmitter: sticks normalised as `conventions.md` says, the auto/manual
+/// switch, and the wheel brakes (which the pilot works directly, not through the board).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Sticks {
+    pub aileron: f64,
+    pub elevator: f64,
+    pub throttle: f64,
+    pub rudder: f64,
+    pub brake: f64,
+    pub auto: bool,
+}
+
+/// Whoever holds the transmitter.
+pub trait Pilot {
+    fn sticks(&mut self, truth: &Truth) -> Sticks;
+}
+
+/// A pilot who holds the sticks still: enough for a trimmed airplane to fly straight.
+pub struct SteadyPilot(pub Sticks);
+
+impl Pilot for SteadyPilot {
+    fn sticks(&mut self, _truth: &Truth) -> Sticks {
+        self.0
+    }
+}
+
+/// Faults the world can be told to produce (scenario files schedule them).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct DeviceFaults {
+    /// The device sends nothing.
+    pub silent: [bool; 3],
+    /// The device sends garbage bytes between its frames.
+    pub garbage: [bool; 3],
+    /// The GPS reports no fix.
+    pub gps_loss: bool,
+}
+
+fn device_slot(device: Device) -> usize {
+    match device {
+        Device::Imu => 0,
+        Device::Gps => 1,
+        Device::Servo => 2,
+    }
+}
+
+/// Counters of what the world sent and did.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct WorldStats {
+    pub imu_frames: u64,
+    pub gps_epochs: u64,
+    pub board_frames: u64,
+    pub command_frames: u64,
+    /// Plant steps during which the servos followed the computer.
+    pub computer_steps: u64,
+}
+
+pub struct SimWorld {
+    plant: Plant,
+    pilot: Box<dyn Pilot + Send>,
+    imu: ImuStreamEncoder,
+    next_imu_ns: u64,
+    next_board_ns: u64,
+    board_counter: u8,
+    commands: ServoCommandDecoder,
+    last_command: Option<(ServoCommand, u64)>,
+    sticks: Sticks,
+    faults: DeviceFaults,
+    garbage_state: u32,
+    stats: WorldStats,
+}
+
+impl SimWorld {
+    pub fn new(plant: Plant, pilot: Box<dyn Pilot + Send>) -> Self {
+        let start = plant.time_ns();
+        Self {
+            plant,
+            pilot,
+            imu: ImuStreamEncoder::new(),
+            next_imu_ns: start,
+            next_board_ns: start,
+            board_counter: 0,
+            commands: ServoCommandDecoder::new(u64::MAX),
+            last_command: None,
+            sticks: Sticks::default(),
+            faults: DeviceFaults::default(),
+            garbage_state: 0x9E37_79B9,
+            stats: WorldStats::default(),
+        }
+    }
+
+    pub fn truth(&self) -> Truth {
+        self.plant.truth()
+    }
+
+    pub fn time_ns(&self) -> u64 {
+        self.plant.time_ns()
+    }
+
+    pub fn stats(&self) -> WorldStats {
+        self.stats
+    }
+
+    pub fn sticks(&self) -> Sticks {
+        self.sticks
+    }
+
+    pub fn set_faults(&mut self, faults: DeviceFaults) {
+        self.faults = faults;
+    }
+
+    /// Moves the world to `t_ns`, exchanging bytes with the computer through `link`.
+    pub fn advance_to(&mut self, t_ns: u64, link: &mut dyn DeviceLink) {
+        while self.plant.time_ns() < t_ns {
+            self.read_commands(link);
+            let truth = self.plant.truth();
+            self.sticks = self.pilot.sticks(&truth);
+            let actuators = self.board_outputs();
+            self.plant.step(PLANT_STEP_NS as f64 * 1e-9, &actuators);
+            let now = self.plant.time_ns();
+            if now >= self.next_imu_ns {
+                self.next_imu_ns += IMU_PERIOD_NS;
+                self.send_imu(link);
+            }
+            while let Some(sample) = self.plant.sample_gps() {
+                self.send_gps(&sample, link);
+            }
+            if now >= self.next_board_ns {
+                self.next_board_ns += BOARD_PERIOD_NS;
+                self.send_board_report(link);
+            }
+        }
+    }
+
+    fn read_commands(&mut self, link: &mut dyn DeviceLink) {
+        let mut buf = [0u8; 256];
+        loop {
+            let n = link.receive_from_computer(&mut buf);
+            if n == 0 {
+                break;
+            }
+            let now = self.plant.time_ns();
+            let mut latest = None;
+            self.commands
+                .push(buf.get(..n).unwrap_or_default(), now, |frame| {
+                    latest = Some(frame.command)
+                });
+            if let Some(command) = latest {
+                self.stats.command_frames += 1;
+                self.last_command = Some((command, now));
+            }
+        }
+    }
+
+    /// The board's rule: the computer flies only when the pilot's switch says auto, the
+    /// computer says it is ready, and its commands are fresh; manual wins at once.
+    fn board_outputs(&mut self) -> ActuatorCommands {
+        let now = self.plant.time_ns();
+        let pilot = ActuatorCommands {
+            aileron: self.sticks.aileron,
+            elevator: self.sticks.elevator,
+            rudder: self.sticks.rudder,
+            throttle: self.sticks.throttle,
+            brake: self.sticks.brake,
+        };
+        match self.last_command {
+            Some((command, at))
+                if self.sticks.auto
+                    && command.autopilot_ready
+                    && now.saturating_sub(at) <= COMMAND_TIMEOUT_NS =>
+            {
+                self.stats.computer_steps += 1;
+                let ch = |i: usize| command.channels_us.get(i).copied().unwrap_or(1500);
+                ActuatorCommands {
+                    aileron: f64::from(pulse_us_to_surface(ch(0))),
+                    elevator: f64::from(pulse_us_to_surface(ch(1))),
+                    throttle: f64::from(pulse_us_to_throttle(ch(2))),
+                    rudder: f64::from(pulse_us_to_surface(ch(3))),
+                    brake: self.sticks.brake,
+                }
+            }
+            _ => pilot,
+        }
+    }
+
+    fn garbage(&mut self, device: Device, link: &mut dyn DeviceLink) {
+        if self
+            .faults
+            .garbage
+            .get(device_slot(device))
+            .copied()
+            .unwrap_or(false)
+        {
+            let mut bytes = [0u8; 12];
+            for b in &mut bytes {
+                // xorshift: deterministic noise, no RNG state shared with the plant.
+                self.garbage_state ^= self.garbage_state << 13;
+                self.garbage_state ^= self.garbage_state >> 17;
+                self.garbage_state ^= self.garbage_state << 5;
+                *b = self.garbage_state as u8;
+            }
+            link.send_to_computer(device, &bytes);
+        }
+    }
+
+    fn silent(&self, device: Device) -> bool {
+        self.faults
+            .silent
+            .get(device_slot(device))
+            .copied()
+            .unwrap_or(false)
+    }
+
+    fn send_imu(&mut self, link: &mut dyn DeviceLink) {
+        let sample = self.plant.sample_imu();
+        if self.silent(Device::Imu) {
+            return;
+        }
+        let f32s = |v: [f64; 3]| v.map(|x| x as f32);
+        let measurement = ImuMeasurement {
+            rate_radps: f32s(sample.gyro_radps),
+            specific_force_mps2: f32s(sample.specific_force_mps2),
+            status: ImuStatus(0),
+        };
+        if self.stats.imu_frames % 100 == 0 {
+            // A new slow record each second: temperature and supply drift a little.
+            let seconds = self.stats.imu_frames / 100;
+            self.imu.set_slow_record(&ImuSlowRecord {
+                record_counter: seconds as u16,
+                temperature_c: 25.0 + (seconds as f32 * 0.01),
+                supply_v: 5.02,
+                serial_number: 4711,
+                mean_rate_radps: measurement.rate_radps,
+                mean_specific_force_mps2: measurement.specific_force_mps2,
+                built_in_test: 0,
+            });
+        }
+        let mut frame = [0u8; IMU_FRAME_LEN];
+        let n = self.imu.encode(&measurement, &mut frame);
+        link.send_to_computer(Device::Imu, frame.get(..n).unwrap_or_default());
+        self.stats.imu_frames += 1;
+        self.garbage(Device::Imu, link);
+    }
+
+    fn send_gps(&mut self, sample: &GpsSample, link: &mut dyn DeviceLink) {
+        if self.silent(Device::Gps) {
+            return;
+        }
+        let fix = gps_fix(sample, self.faults.gps_loss);
+        let mut buf = [0u8; 160];
+        // POS last: the receiver is configured to end each epoch with it (GpsConfig).
+        for kind in [
+            SentenceKind::Gga,
+            SentenceKind::Rmc,
+            SentenceKind::Vtg,
+            SentenceKind::Gsa,
+            SentenceKind::Gst,
+            SentenceKind::AshtechPos,
+        ] {
+            if let Some(n) = encode_sentence(kind, Talker::Gp, &fix, &mut buf) {
+                link.send_to_computer(Device::Gps, buf.get(..n).unwrap_or_default());
+            }
+        }
+        self.stats.gps_epochs += 1;
+        self.garbage(Device::Gps, link);
+    }
+
+    fn send_board_report(&mut self, link: &mut dyn DeviceLink) {
+        let battery = self.plant.sample_battery();
+        if self.silent(Device::Servo) {
+            return;
+        }
+        let s = self.sticks;
+        let computer = matches!(self.last_command, Some((c, at))
+            if s.auto && c.autopilot_ready
+                && self.plant.time_ns().saturating_sub(at) <= COMMAND_TIMEOUT_NS);
+        let report = PilotReport {
+            pilot_us: [
+                surface_to_pulse_us(s.aileron as f32),
+                surface_to_pulse_us(s.elevator as f32),
+                throttle_to_pulse_us(s.throttle as f32),
+                surface_to_pulse_us(s.rudder as f32),
+                1500,
+                1500,
+                1500,
+                1500,
+            ],
+            switch_us: if s.auto { 1900 } else { 1100 },
+            logic_battery_v: battery.avionics_voltage_v as f32,
+            servo_battery_v: battery.propulsion_voltage_v as f32,
+            status: BoardStatus(if computer {
+                BoardStatus::COMPUTER_IN_CONTROL
+            } else {
+                0
+            }),
+        };
+        let mut frame = [0u8; PILOT_FRAME_LEN];
+        let n = encode_pilot_frame(self.board_counter, &report, &mut frame);
+        self.board_counter = self.board_counter.wrapping_add(1);
+        link.send_to_computer(Device::Servo, frame.get(..n).unwrap_or_default());
+        self.stats.board_frames += 1;
+        self.garbage(Device::Servo, link);
+    }
+}
+
+/// The receiver's solution as the sentences will carry it.
+pub fn gps_fix(sample: &GpsSample, forced_loss: bool) -> GpsFix {
+    let valid = sample.fix == GpsFixType::Fix3d && !forced_loss;
+    let utc_ms = (UTC_START_MS + (sample.valid_at_s * 1000.0).round().max(0.0) as u64) % 86_400_000;
+    let [vn, ve, vd] = sample.velocity_ned_mps;
+    let speed = (vn * vn + ve * ve).sqrt();
+    let mut course = ve.atan2(vn);
+    if course < 0.0 {
+        course += std::f64::consts::TAU;
+    }
+    let pdop = (sample.hdop * sample.hdop + sample.vdop * sample.vdop).sqrt();
+    let horizontal_sd = sample.horizontal_std_m / std::f64::consts::SQRT_2;
+    GpsFix {
+        utc_time_ms: Some(utc_ms as u32),
+        valid,
+        quality: Some(if valid {
+            FixQuality::Autonomous
+        } else {
+            FixQuality::NoFix
+        }),
+        dimension: Some(if valid {
+            FixDimension::ThreeD
+        } else {
+            FixDimension::NoFix
+        }),
+        satellites: Some(if valid { sample.satellites } else { 0 }),
+        latitude_deg: valid.then_some(sample.position.lat_deg),
+        longitude_deg: valid.then_some(sample.position.lon_deg),
+        altitude_msl_m: valid.then_some(sample.position.alt_msl_m),
+        ground_speed_mps: valid.then_some(speed as f32),
+        course_rad: valid.then_some(course as f32),
+        velocity_ned_mps: if valid {
+            [Some(vn as f32), Some(ve as f32), Some(vd as f32)]
+        } else {
+            [None; 3]
+        },
+        pdop: valid.then_some(pdop as f32),
+        hdop: valid.then_some(sample.hdop as f32),
+        vdop: valid.then_some(sample.vdop as f32),
+        position_sd_m: if valid {
+            [
+                Some(horizontal_sd as f32),
+                Some(horizontal_sd as f32),
+                Some(sample.vertical_std_m as f32),
+            ]
+        } else {
+            [None; 3]
+        },
+        ..GpsFix::default()
+    }
+}
+
+/// A world for a flight without a scenario: the airplane trimmed in level flight at 100 m,
+/// 25 m/s, heading north, in light turbulence, with the GPS the seed had (140 ms mean
+/// period), and a pilot holding the trim.
+pub fn cruise_world(seed: u64) -> Result<SimWorld, String> {
+    use crate::plant::sensors::GpsConfig;
+    use crate::plant::wind::{DrydenParams, WindConfig};
+    use crate::plant::{PlantConfig, trim::trim_level_flight};
+    let config = PlantConfig {
+        wind: WindConfig {
+            steady_ned_mps: [0.0, 2.0, 0.0],
+            turbulence: Some(DrydenParams::light_low_altitude()),
+        },
+        gps: GpsConfig::seed_receiver(),
+        ..PlantConfig::default()
+    };
+    let trim = trim_level_flight(&config.params, 25.0, 100.0, 0.0)
+        .map_err(|e| format!("cannot trim the airplane: {e:?}"))?;
+    let plant = Plant::with_config(config, trim.initial, seed);
+    let c = trim.commands;
+    let pilot = SteadyPilot(Sticks {
+        aileron: c.aileron,
+        elevator: c.elevator,
+        throttle: c.throttle,
+        rudder: c.rudder,
+        brake: 0.0,
+        auto: false,
+    });
+    Ok(SimWorld::new(plant, Box::new(pilot)))
+}

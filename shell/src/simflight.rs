@@ -1,0 +1,247 @@
+//! Flying the simulated airplane: the world's devices talk to the device tasks through
+//! in-process rings (the same `DevicePort`s serial threads fill on hardware), and the
+//! executive's timer advances the world between frames.
+
+use crate::logwriter::LogStream;
+use crate::platform::{Platform, RtConfig, RtReport};
+use crate::serial::{DevicePort, RX_RING, TX_RING};
+use skyframe_core::logfmt::record::{
+    DataBlockWriter, LogFormat, MAX_RECORD_LEN, encode_begin_data, encode_end_data,
+};
+use skyframe_sim::VirtualClock;
+use skyframe_sim::plant::Truth;
+use skyframe_sim::timer::SimTimer;
+use skyframe_sim::world::{Device, DeviceLink, SimWorld};
+use std::sync::Mutex;
+
+/// Ground truth, for scoring estimates (`docs/log-streams.md`, `truth.bin`).
+pub const TRUTH_LOG: LogFormat = LogFormat::new(
+    "%.3lf,%.3lf,%.3lf,%.3f,%.3f,%.3f,%.5f,%.5f,%.5f,%.5f,%.5f,%.5f,%.3f,%.5f,%.5f,%.3f,%.3f,%.3f,%hhu",
+    "north_m,east_m,down_m,vn_m_s,ve_m_s,vd_m_s,roll_rad,pitch_rad,yaw_rad,p_rad_s,q_rad_s,\
+     r_rad_s,airspeed_m_s,alpha_rad,beta_rad,wind_n_m_s,wind_e_m_s,wind_d_m_s,on_ground",
+);
+/// Truth at 50 Hz: finer than the estimator's outputs need, coarse enough to stay small.
+pub const TRUTH_INTERVAL_NS: u64 = 20_000_000;
+
+/// The world's side of the device rings.
+pub struct RingLink {
+    imu: rtrb::Producer<u8>,
+    gps: rtrb::Producer<u8>,
+    servo: rtrb::Producer<u8>,
+    commands: rtrb::Consumer<u8>,
+    /// Bytes a full ring refused (the device task fell behind).
+    pub overflow: u64,
+}
+
+/// The device ports for the tasks, and the link for the world.
+pub fn device_rings() -> ([DevicePort; 3], RingLink) {
+    let (imu_in, imu_out) = rtrb::RingBuffer::new(RX_RING);
+    let (gps_in, gps_out) = rtrb::RingBuffer::new(RX_RING);
+    let (servo_in, servo_out) = rtrb::RingBuffer::new(RX_RING);
+    let (commands_in, commands_out) = rtrb::RingBuffer::new(TX_RING);
+    // Nothing is ever sent to the IMU or the GPS: their tx rings are never read.
+    let (imu_tx, _) = rtrb::RingBuffer::new(1);
+    let (gps_tx, _) = rtrb::RingBuffer::new(1);
+    (
+        [
+            DevicePort::new(imu_out, imu_tx),
+            DevicePort::new(gps_out, gps_tx),
+            DevicePort::new(servo_out, commands_in),
+        ],
+        RingLink {
+            imu: imu_in,
+            gps: gps_in,
+            servo: servo_in,
+            commands: commands_out,
+            overflow: 0,
+        },
+    )
+}
+
+impl DeviceLink for RingLink {
+    fn send_to_computer(&mut self, device: Device, bytes: &[u8]) {
+        let ring = match device {
+            Device::Imu => &mut self.imu,
+            Device::Gps => &mut self.gps,
+            Device::Servo => &mut self.servo,
+        };
+        let room = ring.slots().min(bytes.len());
+        if let Ok(chunk) = ring.write_chunk_uninit(room) {
+            chunk.fill_from_iter(bytes.iter().copied());
+        }
+        self.overflow += (bytes.len() - room) as u64;
+    }
+
+    fn receive_from_computer(&mut self, buf: &mut [u8]) -> usize {
+        let n = self.commands.slots().min(buf.len());
+        if let Ok(chunk) = self.commands.read_chunk(n) {
+            let (a, b) = chunk.as_slices();
+            let (head, tail) = buf.split_at_mut(a.len().min(n));
+            head.copy_from_slice(a);
+            if let Some(tail) = tail.get_mut(..b.len()) {
+                tail.copy_from_slice(b);
+            }
+            chunk.commit_all();
+        }
+        n
+    }
+}
+
+/// Virtual time: runs as fast as the machine allows, deterministic for a seed.
+#[derive(Default)]
+pub struct VirtualTime;
+
+impl Platform for VirtualTime {
+    type Timer = VirtualClock;
+
+    fn name(&self) -> &'static str {
+        "virtual"
+    }
+
+    fn virtual_time(&self) -> bool {
+        true
+    }
+
+    fn timer(&self) -> VirtualClock {
+        VirtualClock::new()
+    }
+
+    fn make_realtime(&self, _config: &RtConfig) -> RtReport {
+        RtReport::none()
+    }
+}
+
+/// A host platform whose timer also advances a simulated world. The world is handed to the
+/// first timer made (a flight makes one).
+pub struct SimPlatform<'p, P> {
+    host: &'p P,
+    world: Mutex<Option<(SimWorld, RingLink, Option<LogStream>)>>,
+    /// Log TIME of clock zero (`log-format.md`: wall clock in real time, 0 in virtual time).
+    time_origin_ns: u64,
+}
+
+impl<'p, P: Platform> SimPlatform<'p, P> {
+    pub fn new(
+        host: &'p P,
+        world: SimWorld,
+        link: RingLink,
+        truth: Option<LogStream>,
+        time_origin_ns: u64,
+    ) -> Self {
+        Self {
+            host,
+            world: Mutex::new(Some((world, link, truth))),
+            time_origin_ns,
+        }
+    }
+}
+
+/// The truth stream: declared and begun when made, ended when dropped (with the timer, at
+/// the end of the flight), so `truth.bin` is closed cleanly like every other log.
+struct TruthLog {
+    stream: LogStream,
+    buf: Vec<u8>,
+    time_origin_ns: u64,
+    last_t_ns: u64,
+}
+
+impl Drop for TruthLog {
+    fn drop(&mut self) {
+        if let Ok(n) = encode_end_data(&mut self.buf, self.time_origin_ns + self.last_t_ns) {
+            self.stream
+                .push_record(self.buf.get(..n).unwrap_or_default());
+        }
+    }
+}
+
+/// Encodes truth records into the truth stream.
+fn truth_tap(mut stream: LogStream, time_origin_ns: u64) -> skyframe_sim::timer::TruthTap {
+    let format = TRUTH_LOG.parse().ok();
+    let mut buf = vec![0u8; MAX_RECORD_LEN];
+    if let Ok(n) = TRUTH_LOG.encode_declaration(&mut buf, 1) {
+        stream.push_record(buf.get(..n).unwrap_or_default());
+    }
+    if let Ok(n) = encode_begin_data(&mut buf, time_origin_ns) {
+        stream.push_record(buf.get(..n).unwrap_or_default());
+    }
+    let mut log = TruthLog {
+        stream,
+        buf,
+        time_origin_ns,
+        last_t_ns: 0,
+    };
+    Box::new(move |t_ns: u64, truth: &Truth| {
+        log.last_t_ns = t_ns;
+        let TruthLog { stream, buf, .. } = &mut log;
+        let Some(format) = format.as_ref() else {
+            return;
+        };
+        let [n, e, d] = truth.position_ned_m;
+        let [vn, ve, vd] = truth.velocity_ned_mps;
+        let [p, q, r] = truth.rates_body_radps;
+        let [wn, we, wd] = truth.wind_ned_mps;
+        let f = |x: f64| x as f32;
+        let written = DataBlockWriter::new(buf, 1, time_origin_ns + t_ns, format)
+            .f64(n)
+            .f64(e)
+            .f64(d)
+            .f32(f(vn))
+            .f32(f(ve))
+            .f32(f(vd))
+            .f32(f(truth.roll_rad))
+            .f32(f(truth.pitch_rad))
+            .f32(f(truth.yaw_rad))
+            .f32(f(p))
+            .f32(f(q))
+            .f32(f(r))
+            .f32(f(truth.airspeed_mps))
+            .f32(f(truth.alpha_rad))
+            .f32(f(truth.beta_rad))
+            .f32(f(wn))
+            .f32(f(we))
+            .f32(f(wd))
+            .u8(u8::from(truth.on_ground))
+            .finish();
+        if let Ok(len) = written {
+            stream.push_record(buf.get(..len).unwrap_or_default());
+        }
+    })
+}
+
+impl<P: Platform> Platform for SimPlatform<'_, P> {
+    type Timer = SimTimer<P::Timer, RingLink>;
+
+    fn name(&self) -> &'static str {
+        if self.host.virtual_time() {
+            "sim (virtual time)"
+        } else {
+            "sim (real time)"
+        }
+    }
+
+    fn virtual_time(&self) -> bool {
+        self.host.virtual_time()
+    }
+
+    fn timer(&self) -> Self::Timer {
+        let taken = self.world.lock().ok().and_then(|mut w| w.take());
+        let inner = self.host.timer();
+        match taken {
+            Some((world, link, truth)) => {
+                let timer = SimTimer::new(inner, world, link);
+                match truth {
+                    Some(stream) => {
+                        timer.with_truth(TRUTH_INTERVAL_NS, truth_tap(stream, self.time_origin_ns))
+                    }
+                    None => timer,
+                }
+            }
+            // A second timer (not made by a flight) only keeps time.
+            None => SimTimer::without_world(inner),
+        }
+    }
+
+    fn make_realtime(&self, config: &RtConfig) -> RtReport {
+        self.host.make_realtime(config)
+    }
+}
