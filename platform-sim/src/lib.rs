@@ -6,6 +6,7 @@
 //! [`plant`] is the simulated airplane: 6-DOF dynamics, wind, ground contact and the sensor
 //! models, all in virtual time and deterministic for a seed.
 
+pub mod pilot;
 pub mod plant;
 
 use skyframe_core::executive::{Clock, FrameTimer};
