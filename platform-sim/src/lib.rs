@@ -8,6 +8,7 @@
 
 pub mod pilot;
 pub mod plant;
+pub mod servo_board;
 
 use skyframe_core::executive::{Clock, FrameTimer};
 use std::sync::atomic::{AtomicU64, Ordering};
