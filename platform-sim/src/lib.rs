@@ -8,6 +8,7 @@
 
 pub mod pilot;
 pub mod plant;
+pub mod scenario;
 pub mod servo_board;
 
 use skyframe_core::executive::{Clock, FrameTimer};
