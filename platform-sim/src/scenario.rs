@@ -307,9 +307,30 @@ fn line_column(src: &str, offset: usize) -> (usize, usize) {
     (line, column)
 }
 
-/// Where `key = ...` is written inside `span`, or the start of `span` if it is not found.
+/// The text a table's keys are in: for an inline table its span; for a `[header]` table (whose
+/// span is the header alone) from the header to the next header or the end.
+fn table_region(src: &str, span: &Range<usize>) -> Range<usize> {
+    let header = src.get(span.clone()).unwrap_or("");
+    if !header.trim_start().starts_with('[') {
+        return span.clone();
+    }
+    let body_start = span.end.min(src.len());
+    let rest = src.get(body_start..).unwrap_or("");
+    let mut offset = body_start;
+    for line in rest.split_inclusive('\n') {
+        if offset > body_start && line.trim_start().starts_with('[') {
+            return span.start..offset;
+        }
+        offset += line.len();
+    }
+    span.start..src.len()
+}
+
+/// Where `key = ...` is written in the table at `span`, or the start of `span` if it is not
+/// found.
 fn key_offset(src: &str, span: &Range<usize>, key: &str) -> usize {
-    let Some(text) = src.get(span.clone()) else {
+    let region = table_region(src, span);
+    let Some(text) = src.get(region.clone()) else {
         return span.start;
     };
     let bytes = text.as_bytes();
@@ -321,11 +342,24 @@ fn key_offset(src: &str, span: &Range<usize>, key: &str) -> usize {
         let rest = text.get(at + key.len()..).unwrap_or("");
         let after_ok = rest.trim_start_matches([' ', '\t']).starts_with('=');
         if before_ok && after_ok {
-            return span.start + at;
+            return region.start + at;
         }
         from = at + key.len();
     }
     span.start
+}
+
+/// The key whose value starts at `offset` (`key = value` on one line), if any.
+fn key_before(src: &str, offset: usize) -> Option<&str> {
+    let before = src.get(..offset)?;
+    let line = before.rsplit('\n').next()?;
+    let assignment = line.rfind('=')?;
+    let name = line.get(..assignment)?.trim_end();
+    let start = name
+        .rfind(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
+        .map_or(0, |i| i + 1);
+    let key = name.get(start..)?;
+    (!key.is_empty()).then_some(key)
 }
 
 struct Locator<'a> {
@@ -447,10 +481,17 @@ impl Scenario {
     pub fn parse(src: &str) -> Result<Self, ScenarioError> {
         let raw: RawScenario = toml::from_str(src).map_err(|e| {
             let (line, column) = e.span().map_or((0, 0), |s| line_column(src, s.start));
+            let mut message = e.message().trim().replace('\n', "; ");
+            // A value of the wrong type: say whose value it is.
+            if let Some(key) = e.span().and_then(|s| key_before(src, s.start)) {
+                if !message.contains(key) {
+                    message = format!("`{key}`: {message}");
+                }
+            }
             ScenarioError {
                 line,
                 column,
-                message: e.message().trim().replace('\n', "; "),
+                message,
             }
         })?;
         let loc = Locator { src };

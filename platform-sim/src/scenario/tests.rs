@@ -41,6 +41,485 @@ fn print_trace(summary: &FlightSummary) {
     );
 }
 
+/// The step the long flights use: the plant's 5 ms RK4 instead of 1 ms, so the five-minute
+/// flight runs in seconds in a debug build. The flights are checked for the same outcome at
+/// 1, 2, 5 and 10 ms (see `explore_default`).
+fn fast() -> RunOptions {
+    RunOptions {
+        plant_max_step_s: 0.005,
+        ..RunOptions::default()
+    }
+}
+
+fn unwrapped_roll_change(samples: &[&TrajectorySample]) -> f64 {
+    samples
+        .windows(2)
+        .map(|w| crate::pilot::wrap_pi(w[1].roll_rad - w[0].roll_rad))
+        .sum()
+}
+
+#[test]
+fn default_scenario_flown_by_the_pilot_alone() {
+    let scenario = parse(TAKEOFF_CIRCUIT);
+    let s = run_pilot_only(&scenario, fast());
+    print_trace(&s);
+
+    // Lifts off within the first 300 m of runway, on the centreline.
+    let (t_lo, at_lo) = s.liftoff.expect("never lifted off");
+    assert!(
+        t_lo < 15.0 && at_lo[0] < 300.0 && at_lo[1].abs() < 5.0,
+        "{:?}",
+        s.liftoff
+    );
+    assert!(!s.airframe_strike, "tail, wing or crash strike");
+
+    // Stays in the box: within 1.5 km, and between 20 and 300 m up except when taking off
+    // and landing.
+    for p in &s.samples {
+        assert!(
+            p.position_ned_m[0].abs() < 1500.0 && p.position_ned_m[1].abs() < 1500.0,
+            "left the box: {p:?}"
+        );
+        assert!(p.height_m < 300.0, "too high: {p:?}");
+        let departing_or_landing =
+            matches!(p.pilot_phase, "takeoff" | "final" | "rollout" | "parked");
+        if !p.on_ground && !departing_or_landing {
+            assert!(p.height_m > 20.0, "too low: {p:?}");
+        }
+    }
+
+    // Flies the circuit: passes near each corner of the 100 m rectangle.
+    let corners = [(750.0, 0.0), (750.0, 350.0), (-550.0, 350.0), (-550.0, 0.0)];
+    for (n, e) in corners {
+        let nearest = s
+            .samples
+            .iter()
+            .filter(|p| p.t_s < 125.0)
+            .map(|p| (p.position_ned_m[0] - n).hypot(p.position_ned_m[1] - e))
+            .fold(f64::INFINITY, f64::min);
+        assert!(
+            nearest < 120.0,
+            "corner ({n}, {e}) missed by {nearest:.0} m"
+        );
+    }
+
+    // The roll: the roll angle goes all the way round, through ±180°.
+    let rolling: Vec<&TrajectorySample> = s
+        .samples
+        .iter()
+        .filter(|p| p.pilot_phase == "roll")
+        .collect();
+    assert!(
+        rolling
+            .iter()
+            .any(|p| p.roll_rad.abs() > 170f64.to_radians())
+    );
+    let rolled = unwrapped_roll_change(&rolling);
+    assert!(
+        rolled > 300f64.to_radians(),
+        "rolled only {:.0}°",
+        rolled.to_degrees()
+    );
+
+    // The loop: nose up through the vertical, over the top inverted, down the back.
+    let looping: Vec<&TrajectorySample> = s
+        .samples
+        .iter()
+        .filter(|p| p.pilot_phase == "loop")
+        .collect();
+    let vertical = looping
+        .iter()
+        .position(|p| p.pitch_rad > 75f64.to_radians())
+        .expect("nose never vertical");
+    let over_the_top = looping[vertical..]
+        .iter()
+        .position(|p| p.roll_rad.abs() > 150f64.to_radians() && p.pitch_rad > 0.0)
+        .expect("never inverted at the top")
+        + vertical;
+    assert!(
+        looping[over_the_top..]
+            .iter()
+            .any(|p| p.pitch_rad < -60f64.to_radians()),
+        "never came down the back"
+    );
+
+    // The auto stretch: no flight computer, so the board left the pilot flying.
+    assert!(s.samples.iter().any(|p| p.switch == SwitchPosition::Auto));
+    assert_eq!(s.time_on_computer_s, 0.0);
+    assert_eq!(s.time_on_failsafe_s, 0.0);
+
+    // Lands on the runway near the touchdown point, stops on the centreline, upright.
+    let (t_td, at_td) = s.touchdown.expect("never touched down");
+    assert!(t_td > 200.0, "touched down early at {t_td} s");
+    assert!(
+        (-50.0..300.0).contains(&at_td[0]) && at_td[1].abs() < 10.0,
+        "{at_td:?}"
+    );
+    let end = &s.final_truth;
+    assert!(s.parked, "the pilot never stopped");
+    assert!(end.on_ground && !end.airframe_strike);
+    assert!(
+        end.velocity_ned_mps.iter().all(|v| v.abs() < 0.1),
+        "{end:?}"
+    );
+    assert!(
+        (0.0..600.0).contains(&end.position_ned_m[0]) && end.position_ned_m[1].abs() < 10.0,
+        "{end:?}"
+    );
+    assert!(end.roll_rad.abs() < 0.05 && end.pitch_rad.abs() < 0.05);
+    let flight_time = s.flight_time_s().unwrap_or(0.0);
+    println!(
+        "max height {:.0} m, furthest {:.0} m, flight {flight_time:.0} s, stopped {:.0} m after touchdown",
+        s.max_height_m,
+        s.max_distance_m,
+        end.position_ned_m[0] - at_td[0]
+    );
+    assert!(flight_time > 240.0, "{flight_time}");
+}
+
+#[test]
+fn same_seed_flies_the_same_trajectory() {
+    // The faults scenario's first minute in moderate turbulence: short, and gusty enough that
+    // any difference in the random streams shows.
+    let mut scenario = parse(FAULTS);
+    scenario.duration_s = 60.0;
+    scenario.turbulence = Turbulence::Moderate;
+    let options = RunOptions {
+        plant_max_step_s: 0.01,
+        ..RunOptions::default()
+    };
+    let a = run_pilot_only(&scenario, options);
+    let b = run_pilot_only(&scenario, options);
+    assert!(a == b, "same seed, different runs");
+    scenario.seed += 1;
+    let c = run_pilot_only(&scenario, options);
+    assert!(a.samples != c.samples, "the seed changes nothing");
+    assert!(a.liftoff.is_some() && c.liftoff.is_some());
+}
+
+#[test]
+fn faults_scenario_flies_and_lands_with_every_fault_kind() {
+    let scenario = parse(FAULTS);
+    let kinds: Vec<FaultKind> = scenario.faults.iter().map(|f| f.kind).collect();
+    for kind in [
+        FaultKind::SensorSilence,
+        FaultKind::GarbageBurst,
+        FaultKind::GpsLoss,
+        FaultKind::TaskOverrun,
+        FaultKind::ServoPortVanish,
+    ] {
+        assert!(kinds.contains(&kind), "{kind:?} missing");
+    }
+    // One at a time, with gaps.
+    for w in scenario.faults.windows(2) {
+        assert!(w[1].t_s > w[0].end_s(), "{:?} overlaps {:?}", w[0], w[1]);
+    }
+    let s = run_pilot_only(&scenario, fast());
+    assert!(
+        s.liftoff.is_some() && s.parked && !s.airframe_strike,
+        "{:?}",
+        s.final_truth
+    );
+    // Every fault happens while airborne, with the switch on AUTO.
+    for f in &scenario.faults {
+        let p = s
+            .samples
+            .iter()
+            .find(|p| p.t_s >= f.t_s)
+            .expect("fault after the end");
+        assert!(
+            !p.on_ground && p.switch == SwitchPosition::Auto,
+            "{f:?} at {p:?}"
+        );
+    }
+}
+
+#[test]
+fn shipped_scenarios_parse_to_what_they_say() {
+    let s = parse(TAKEOFF_CIRCUIT);
+    assert_eq!(s.seed, 2003);
+    assert_eq!(s.duration_s, 300.0);
+    assert_eq!(s.initial, InitialCondition::OnRunway { heading_rad: 0.0 });
+    assert_eq!(s.turbulence, Turbulence::Light);
+    assert_eq!(s.gps, GpsPreset::SeedReceiver);
+    // 3 m/s from the north blows south.
+    assert!((s.wind_ned_mps[0] + 3.0).abs() < 1e-12 && s.wind_ned_mps[1].abs() < 1e-12);
+    let pilots: Vec<Manoeuvre> = s
+        .timeline
+        .iter()
+        .filter_map(|e| match e.action {
+            TimelineAction::Pilot(m) => Some(m),
+            TimelineAction::Switch(_) => None,
+        })
+        .collect();
+    assert!(matches!(pilots[0], Manoeuvre::Takeoff { climb_to_m, .. } if climb_to_m == 100.0));
+    assert!(pilots.contains(&Manoeuvre::Roll {
+        direction: Direction::Right
+    }));
+    assert!(pilots.contains(&Manoeuvre::Loop));
+    assert!(matches!(pilots.last(), Some(Manoeuvre::Approach { .. })));
+    assert!(
+        s.timeline
+            .iter()
+            .any(|e| e.action == TimelineAction::Switch(SwitchPosition::Auto))
+    );
+    assert!(s.faults.is_empty());
+    assert_eq!(
+        s.timeline[1].line, 33,
+        "line of the take-off entry's header"
+    );
+
+    let f = parse(FAULTS);
+    assert_eq!(f.faults.len(), 6);
+    let overrun = f
+        .faults
+        .iter()
+        .find(|x| x.kind == FaultKind::TaskOverrun)
+        .expect("overrun");
+    assert_eq!(
+        (overrun.task.as_deref(), overrun.extra_us, overrun.device),
+        (Some("estimator"), Some(4000), None)
+    );
+    let gps = f
+        .faults
+        .iter()
+        .find(|x| x.kind == FaultKind::GpsLoss)
+        .expect("gps loss");
+    assert_eq!(gps.device, Some(Device::Gps));
+}
+
+#[test]
+fn active_faults_cover_their_window_only() {
+    let f = parse(FAULTS);
+    let active = |t: f64| -> Vec<FaultKind> { f.active_faults(t).map(|x| x.kind).collect() };
+    assert!(active(0.0).is_empty());
+    assert_eq!(active(35.0), vec![FaultKind::SensorSilence]);
+    assert_eq!(active(36.999), vec![FaultKind::SensorSilence]);
+    assert!(active(37.0).is_empty(), "the end is exclusive");
+    assert_eq!(active(60.0), vec![FaultKind::GpsLoss]);
+    assert_eq!(active(75.5), vec![FaultKind::TaskOverrun]);
+    assert_eq!(active(96.0), vec![FaultKind::ServoPortVanish]);
+    assert!(active(150.0).is_empty());
+}
+
+const MINIMAL: &str = "duration_s = 10\n";
+
+#[test]
+fn minimal_scenario_takes_defaults() {
+    let s = parse(MINIMAL);
+    assert_eq!(s.seed, DEFAULT_SEED);
+    assert_eq!(s.initial, InitialCondition::OnRunway { heading_rad: 0.0 });
+    assert_eq!(s.wind_config(), WindConfig::calm());
+    assert_eq!(s.gps, GpsPreset::Nominal);
+    assert!(s.timeline.is_empty() && s.faults.is_empty());
+    assert_eq!(s.runway.touchdown_ne_m, [100.0, 0.0]);
+}
+
+#[test]
+fn in_flight_start_is_trimmed_and_held() {
+    let s = parse(
+        "duration_s = 20\n[initial]\nkind = \"flight\"\naltitude_m = 120\nairspeed_mps = 24\nheading_deg = 90\n",
+    );
+    let params = AircraftParams::aerosonde();
+    let init = s.initial_state(&params);
+    assert!((init.position_ned_m[2] + 120.0).abs() < 1e-9);
+    assert!((init.yaw_rad - std::f64::consts::FRAC_PI_2).abs() < 1e-9);
+    let run = run_pilot_only(
+        &s,
+        RunOptions {
+            plant_max_step_s: 0.01,
+            ..RunOptions::default()
+        },
+    );
+    let end = run.final_truth;
+    assert!((end.height_above_ground_m - 120.0).abs() < 10.0, "{end:?}");
+    assert!(
+        (end.yaw_rad - std::f64::consts::FRAC_PI_2).abs() < 0.1,
+        "{end:?}"
+    );
+    assert!(run.liftoff.is_none() && run.touchdown.is_none());
+}
+
+fn error(src: &str) -> ScenarioError {
+    match Scenario::parse(src) {
+        Ok(s) => panic!("accepted: {s:?}"),
+        Err(e) => e,
+    }
+}
+
+/// Each error is one line, names the key and says where it is.
+#[test]
+fn errors_name_the_key_and_its_line() {
+    let cases: &[(&str, usize, &str)] = &[
+        // (source, line, words the message must contain)
+        ("duration_s = 10\nspeed = 3\n", 2, "speed"),
+        ("seed = 1\n", 1, "duration_s"),
+        ("duration_s = \"long\"\n", 1, "duration_s"),
+        ("duration_s = -1\n", 1, "duration_s"),
+        (
+            "duration_s = 10\n[wind]\nspeed_mps = 3\nfrom = 20\n",
+            4,
+            "from",
+        ),
+        (
+            "duration_s = 10\n[wind]\nturbulence = \"severe\"\n",
+            3,
+            "turbulence",
+        ),
+        (
+            "duration_s = 10\n[wind]\nspeed_mps = 3\nnorth_mps = 1\n",
+            3,
+            "speed_mps",
+        ),
+        (
+            "duration_s = 10\n[gps]\npreset = \"perfect\"\n",
+            3,
+            "preset",
+        ),
+        ("duration_s = 10\n[initial]\nkind = \"air\"\n", 3, "kind"),
+        (
+            "duration_s = 10\n[initial]\nkind = \"flight\"\naltitude_m = 100\n",
+            2,
+            "airspeed_mps",
+        ),
+        (
+            "duration_s = 10\n[initial]\nkind = \"runway\"\naltitude_m = 100\n",
+            4,
+            "altitude_m",
+        ),
+        (
+            "duration_s = 10\n\n[[timeline]]\nt_s = 1\npilot = \"barrel\"\n",
+            5,
+            "barrel",
+        ),
+        (
+            "duration_s = 10\n[[timeline]]\nt_s = 1\npilot = \"turn\"\nheading = 90\n",
+            5,
+            "heading",
+        ),
+        (
+            "duration_s = 10\n[[timeline]]\nt_s = 1\npilot = \"turn\"\n",
+            2,
+            "heading_deg",
+        ),
+        (
+            "duration_s = 10\n[[timeline]]\nt_s = 1\npilot = \"roll\"\naltitude_m = 90\n",
+            5,
+            "altitude_m",
+        ),
+        (
+            "duration_s = 10\n[[timeline]]\nt_s = 1\npilot = \"turn\"\nheading_deg = 90\nmax_bank_deg = 85\n",
+            6,
+            "max_bank_deg",
+        ),
+        (
+            "duration_s = 10\n[[timeline]]\nt_s = 1\nswitch = \"semi\"\n",
+            4,
+            "switch",
+        ),
+        (
+            "duration_s = 10\n[[timeline]]\nt_s = 1\nswitch = \"auto\"\nheading_deg = 3\n",
+            5,
+            "heading_deg",
+        ),
+        (
+            "duration_s = 10\n[[timeline]]\nt_s = 5\nswitch = \"auto\"\n[[timeline]]\nt_s = 2\nswitch = \"manual\"\n",
+            6,
+            "t_s",
+        ),
+        (
+            "duration_s = 10\n[[timeline]]\nt_s = 50\nswitch = \"auto\"\n",
+            3,
+            "t_s",
+        ),
+        (
+            "duration_s = 10\n[[fault]]\nt_s = 1\nduration_s = 1\nkind = \"meltdown\"\n",
+            5,
+            "meltdown",
+        ),
+        (
+            "duration_s = 10\n[[fault]]\nt_s = 1\nduration_s = 1\nkind = \"sensor_silence\"\n",
+            2,
+            "device",
+        ),
+        (
+            "duration_s = 10\n[[fault]]\nt_s = 1\nduration_s = 1\nkind = \"task_overrun\"\nextra_us = 100\n",
+            2,
+            "task",
+        ),
+        (
+            "duration_s = 10\n[[fault]]\nt_s = 1\nduration_s = 1\nkind = \"gps_loss\"\ndevice = \"imu\"\n",
+            6,
+            "device",
+        ),
+        (
+            "duration_s = 10\n[[fault]]\nt_s = 1\nduration_s = 1\nkind = \"gps_loss\"\nextra_us = 5\n",
+            6,
+            "extra_us",
+        ),
+        (
+            "duration_s = 10\n[[fault]]\nt_s = 1\nduration_s = 1\nkind = \"gps_loss\"\ncolour = 5\n",
+            6,
+            "colour",
+        ),
+        // Inline tables are located too.
+        (
+            "duration_s = 10\ntimeline = [\n  { t_s = 1, pilot = \"climb\", altitude_m = 5000 },\n]\n",
+            3,
+            "altitude_m",
+        ),
+        ("duration_s = 10\n[wind\n", 2, ""),
+    ];
+    for (src, line, words) in cases {
+        let e = error(src);
+        let text = e.to_string();
+        println!("{text}");
+        assert!(!text.contains('\n'), "more than one line: {text:?}");
+        assert!(text.contains(words), "{text:?} does not name {words:?}");
+        assert_eq!(e.line, *line, "{text:?} for {src:?}");
+        if *line > 0 {
+            assert!(text.starts_with(&format!("line {line}, column ")), "{text}");
+        }
+    }
+}
+
+#[test]
+fn errors_point_at_the_column_of_the_key() {
+    let e =
+        error("duration_s = 10\n[[timeline]]\nt_s = 1\npilot = \"roll\"\n   direction = \"up\"\n");
+    assert_eq!((e.line, e.column), (5, 4), "{e}");
+}
+
+#[test]
+fn garbage_never_panics() {
+    for src in [
+        "",
+        "\u{0}",
+        "[[timeline]]",
+        "duration_s = 1e400",
+        "duration_s = nan",
+        "a = [",
+        "duration_s = 10\n[[fault]]\n",
+    ] {
+        let _ = Scenario::parse(src);
+    }
+}
+
+#[test]
+fn timeline_player_applies_entries_when_due() {
+    let s = parse(TAKEOFF_CIRCUIT);
+    let params = AircraftParams::aerosonde();
+    let mut pilot = Pilot::new(&params, PilotConfig::default());
+    let mut player = s.player();
+    assert_eq!(player.advance(0.0, &mut pilot), 1, "the switch at 0 s");
+    assert_eq!(player.advance(0.5, &mut pilot), 0);
+    assert_eq!(player.advance(1.0, &mut pilot), 1, "the take-off");
+    assert_eq!(player.advance(125.0, &mut pilot), 5);
+    assert_eq!(pilot.switch(), SwitchPosition::Auto);
+    assert_eq!(player.advance(1e9, &mut pilot), s.timeline.len() - 7);
+    assert!(player.is_finished());
+}
+
 #[test]
 #[ignore]
 fn explore_default() {
