@@ -887,100 +887,211 @@ impl Pilot {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::plant::{InitialState, Plant, WindConfig};
+    use crate::plant::{InitialState, Plant, PlantConfig, WindConfig};
 
     const DT: f64 = 0.02;
 
-    #[test]
-    #[ignore]
-    fn explore() {
-        let params = AircraftParams::aerosonde();
-        let mut plant = Plant::new(
-            params.clone(),
-            InitialState::on_runway(&params, 0.0),
-            WindConfig::calm(),
-            1,
-        );
-        let mut pilot = Pilot::new(&params, PilotConfig::default());
-        pilot.fly(Manoeuvre::Takeoff {
-            rotate_speed_mps: 18.0,
-            climb_pitch_rad: 0.17,
-            climb_to_m: 100.0,
-        });
-        let runway = Runway {
-            touchdown_ne_m: [100.0, 0.0],
-            heading_rad: 0.0,
+    fn plant_at(initial: InitialState) -> Plant {
+        let config = PlantConfig {
+            wind: WindConfig::calm(),
+            max_step_s: 0.005,
+            ..PlantConfig::default()
         };
-        let plan: Vec<(f64, Manoeuvre)> = vec![
-            (
-                40.0,
-                Manoeuvre::Turn {
-                    heading_rad: FRAC_PI_2,
-                    max_bank_rad: 0.5,
-                    direction: None,
-                },
-            ),
-            (
-                60.0,
-                Manoeuvre::Turn {
-                    heading_rad: PI,
-                    max_bank_rad: 0.5,
-                    direction: None,
-                },
-            ),
-            (
-                75.0,
-                Manoeuvre::Roll {
-                    direction: Direction::Right,
-                },
-            ),
-            (
-                90.0,
-                Manoeuvre::Climb {
-                    altitude_m: 150.0,
-                    airspeed_mps: None,
-                },
-            ),
-            (110.0, Manoeuvre::Loop),
-            (
-                140.0,
-                Manoeuvre::Approach {
-                    runway,
-                    glide_slope_rad: 0.07,
-                    final_length_m: 700.0,
-                },
-            ),
-        ];
-        let mut next = 0;
-        for k in 0..(300.0 / DT) as usize {
+        Plant::with_config(config, initial, 3)
+    }
+
+    /// Trimmed level flight north at `altitude_m`, the pilot holding, then `manoeuvre` after
+    /// 2 s; returns the truth every step.
+    fn fly_from_trim(altitude_m: f64, manoeuvre: Manoeuvre, seconds: f64) -> (Vec<Truth>, Pilot) {
+        let params = AircraftParams::aerosonde();
+        let trim = trim_level_flight(&params, 23.0, altitude_m, 0.0).expect("trim");
+        let mut plant = plant_at(trim.initial);
+        let mut pilot = Pilot::new(&params, PilotConfig::default());
+        pilot.fly(Manoeuvre::Hold {
+            altitude_m: None,
+            heading_rad: None,
+            airspeed_mps: None,
+        });
+        let mut history = vec![];
+        for k in 0..(seconds / DT).round() as usize {
             let t = plant.truth();
-            if next < plan.len() && t.t_s >= plan[next].0 {
-                pilot.fly(plan[next].1);
-                next += 1;
+            if k == (2.0 / DT) as usize {
+                pilot.fly(manoeuvre);
             }
             let c = pilot.update(&t);
             plant.step(DT, &c);
-            if k % 50 == 0 {
-                println!(
-                    "{:6.1} {:9} n {:7.1} e {:7.1} h {:6.1} V {:5.1} roll {:6.1} pitch {:6.1} yaw {:6.1} | a {:+.2} e {:+.2} r {:+.2} t {:.2} b {:.0} gnd {} strike {}",
-                    t.t_s,
-                    pilot.phase_name(),
-                    t.position_ned_m[0],
-                    t.position_ned_m[1],
-                    t.height_above_ground_m,
-                    t.airspeed_mps,
-                    t.roll_rad.to_degrees(),
-                    t.pitch_rad.to_degrees(),
-                    t.yaw_rad.to_degrees(),
-                    c.aileron,
-                    c.elevator,
-                    c.rudder,
-                    c.throttle,
-                    c.brake,
-                    t.on_ground,
-                    t.airframe_strike
-                );
+            history.push(plant.truth());
+        }
+        (history, pilot)
+    }
+
+    #[test]
+    fn turns_to_a_heading_within_its_bank_limit_and_holds_altitude() {
+        let bank = 20f64.to_radians();
+        let (h, pilot) = fly_from_trim(
+            100.0,
+            Manoeuvre::Turn {
+                heading_rad: -FRAC_PI_2,
+                max_bank_rad: bank,
+                direction: None,
+            },
+            40.0,
+        );
+        let end = h.last().expect("history");
+        assert!(
+            wrap_pi(end.yaw_rad + FRAC_PI_2).abs() < 3f64.to_radians(),
+            "{end:?}"
+        );
+        let max_roll = h.iter().map(|t| t.roll_rad.abs()).fold(0.0, f64::max);
+        assert!(max_roll < bank + 4f64.to_radians(), "banked {max_roll}");
+        assert!(
+            max_roll > bank - 4f64.to_radians(),
+            "barely banked {max_roll}"
+        );
+        // The short way round: a left turn.
+        assert!(h.iter().all(|t| t.roll_rad < 3f64.to_radians()));
+        for t in &h {
+            assert!((t.height_above_ground_m - 100.0).abs() < 8.0, "{t:?}");
+        }
+        assert!(pilot.is_idle());
+    }
+
+    #[test]
+    fn turns_the_long_way_round_when_told() {
+        let (h, _) = fly_from_trim(
+            100.0,
+            Manoeuvre::Turn {
+                heading_rad: -FRAC_PI_2,
+                max_bank_rad: 30f64.to_radians(),
+                direction: Some(Direction::Right),
+            },
+            50.0,
+        );
+        assert!(h.iter().all(|t| t.roll_rad > -5f64.to_radians()));
+        let end = h.last().expect("history");
+        assert!(wrap_pi(end.yaw_rad + FRAC_PI_2).abs() < 3f64.to_radians());
+    }
+
+    #[test]
+    fn climbs_to_an_altitude_and_levels_off() {
+        let (h, _) = fly_from_trim(
+            80.0,
+            Manoeuvre::Climb {
+                altitude_m: 140.0,
+                airspeed_mps: Some(22.0),
+            },
+            60.0,
+        );
+        let end = h.last().expect("history");
+        assert!((end.height_above_ground_m - 140.0).abs() < 3.0, "{end:?}");
+        assert!((end.airspeed_mps - 22.0).abs() < 1.5, "{end:?}");
+        assert!(
+            h.iter()
+                .all(|t| t.airspeed_mps > 17.0 && t.height_above_ground_m < 150.0)
+        );
+    }
+
+    #[test]
+    fn rolls_left_through_a_full_turn_and_recovers() {
+        let (h, pilot) = fly_from_trim(
+            150.0,
+            Manoeuvre::Roll {
+                direction: Direction::Left,
+            },
+            25.0,
+        );
+        let rolled: f64 = h
+            .windows(2)
+            .map(|w| wrap_pi(w[1].roll_rad - w[0].roll_rad))
+            .take((12.0 / DT) as usize)
+            .sum();
+        assert!(rolled < -300f64.to_radians(), "{}", rolled.to_degrees());
+        let end = h.last().expect("history");
+        assert!(end.roll_rad.abs() < 5f64.to_radians(), "{end:?}");
+        let lowest = h
+            .iter()
+            .map(|t| t.height_above_ground_m)
+            .fold(f64::MAX, f64::min);
+        assert!(lowest > 100.0, "lost {} m", 150.0 - lowest);
+        assert!(pilot.is_idle());
+    }
+
+    #[test]
+    fn sticks_move_no_faster_than_a_hand() {
+        let params = AircraftParams::aerosonde();
+        let config = PilotConfig::default();
+        let mut plant = plant_at(InitialState::on_runway(&params, 0.0));
+        let mut pilot = Pilot::new(&params, config.clone());
+        let full = ActuatorCommands {
+            aileron: 1.0,
+            elevator: -1.0,
+            rudder: 1.0,
+            throttle: 1.0,
+            brake: 0.0,
+        };
+        // Parked, brakes on; then told to move every stick to its end at once.
+        let mut last = pilot.update(&plant.truth());
+        assert_eq!(last.brake, 1.0);
+        pilot.fly(Manoeuvre::Sticks {
+            sticks: full,
+            duration_s: 5.0,
+        });
+        let mut reached_at = None;
+        for _ in 0..100 {
+            plant.step(DT, &last);
+            let now = pilot.update(&plant.truth());
+            for (a, b, rate) in [
+                (last.aileron, now.aileron, config.surface_stick_rate_per_s),
+                (last.elevator, now.elevator, config.surface_stick_rate_per_s),
+                (last.rudder, now.rudder, config.surface_stick_rate_per_s),
+                (last.throttle, now.throttle, config.throttle_rate_per_s),
+            ] {
+                assert!((b - a).abs() <= rate * DT + 1e-12, "{a} -> {b}");
+            }
+            if now == full && reached_at.is_none() {
+                reached_at = Some(plant.time_s());
+            }
+            last = now;
+        }
+        // Half a second for the throttle's full travel (raw sticks need no looking, so no
+        // reaction time).
+        let t = reached_at.expect("never reached the raw sticks");
+        assert!((0.49..0.6).contains(&t), "{t}");
+    }
+
+    #[test]
+    fn reacts_a_reaction_time_late() {
+        let params = AircraftParams::aerosonde();
+        let trim = trim_level_flight(&params, 23.0, 100.0, 0.0).expect("trim");
+        let plant = plant_at(trim.initial);
+        let mut pilot = Pilot::new(&params, PilotConfig::default());
+        pilot.fly(Manoeuvre::Hold {
+            altitude_m: None,
+            heading_rad: None,
+            airspeed_mps: None,
+        });
+        let steady = plant.truth();
+        let mut quiet = None;
+        for k in 0..50 {
+            let mut t = steady;
+            t.t_s = k as f64 * DT;
+            // A gust rolls the airplane 30° right at 0.5 s.
+            if t.t_s >= 0.5 - 1e-9 {
+                t.roll_rad = 30f64.to_radians();
+            }
+            let c = pilot.update(&t);
+            let before = *quiet.get_or_insert(c.aileron);
+            if t.t_s < 0.5 + 0.1 - 1e-9 {
+                assert_eq!(c.aileron, before, "reacted at {} s", t.t_s);
+            } else if t.t_s > 0.7 {
+                assert!(c.aileron < before - 0.1, "no left aileron at {} s", t.t_s);
             }
         }
+    }
+
+    #[test]
+    fn same_truths_same_sticks() {
+        let run = || fly_from_trim(120.0, Manoeuvre::Loop, 20.0).0;
+        assert!(run() == run());
     }
 }
