@@ -4,6 +4,7 @@ use super::*;
 
 const TAKEOFF_CIRCUIT: &str = include_str!("../../../scenarios/takeoff-circuit.toml");
 const FAULTS: &str = include_str!("../../../scenarios/faults.toml");
+const README: &str = include_str!("../../../scenarios/README.md");
 
 fn parse(src: &str) -> Scenario {
     match Scenario::parse(src) {
@@ -300,6 +301,18 @@ fn active_faults_cover_their_window_only() {
     assert_eq!(active(75.5), vec![FaultKind::TaskOverrun]);
     assert_eq!(active(96.0), vec![FaultKind::ServoPortVanish]);
     assert!(active(150.0).is_empty());
+}
+
+#[test]
+fn readme_example_parses() {
+    let start = README.find("```toml\n").expect("example") + "```toml\n".len();
+    let len = README[start..].find("```").expect("end of example");
+    let s = parse(&README[start..start + len]);
+    assert_eq!(s.seed, 5);
+    assert_eq!(s.timeline.len(), 3);
+    assert_eq!(s.faults.len(), 1);
+    assert_eq!(s.turbulence, Turbulence::Moderate);
+    assert!(matches!(s.initial, InitialCondition::InFlight { .. }));
 }
 
 const MINIMAL: &str = "duration_s = 10\n";
