@@ -647,6 +647,25 @@ impl Scenario {
         }
     }
 
+    /// Checks every task-overrun fault names one of `task_names` (the schedule's tasks).
+    pub fn check_tasks(&self, task_names: &[&str]) -> Result<(), ScenarioError> {
+        for f in &self.faults {
+            if let Some(task) = &f.task {
+                if !task_names.contains(&task.as_str()) {
+                    return Err(ScenarioError {
+                        line: f.line,
+                        column: 1,
+                        message: format!(
+                            "task_overrun: no task \"{task}\" in the schedule (it has {})",
+                            task_names.join(", ")
+                        ),
+                    });
+                }
+            }
+        }
+        Ok(())
+    }
+
     /// A timeline player for this scenario.
     pub fn player(&self) -> TimelinePlayer {
         TimelinePlayer {
@@ -1226,6 +1245,47 @@ impl TimelinePlayer {
     }
 }
 
+/// The person with the transmitter in a scenario: the scripted pilot, fed by the timeline.
+/// Call [`ScenarioPilot::update`] at the control rate with the plant's truth; it returns what
+/// the radio receiver hands the servo board.
+#[derive(Debug, Clone)]
+pub struct ScenarioPilot {
+    pilot: Pilot,
+    player: TimelinePlayer,
+}
+
+impl ScenarioPilot {
+    pub fn new(scenario: &Scenario, params: &AircraftParams) -> Self {
+        let mut pilot = Pilot::new(params, PilotConfig::default());
+        // Starting in the air, the pilot already has the sticks and holds what it finds.
+        if matches!(scenario.initial, InitialCondition::InFlight { .. }) {
+            pilot.fly(Manoeuvre::Hold {
+                altitude_m: None,
+                heading_rad: None,
+                airspeed_mps: None,
+            });
+        }
+        Self {
+            pilot,
+            player: scenario.player(),
+        }
+    }
+
+    /// Applies the timeline entries due by `truth.t_s`, then looks and moves the sticks.
+    pub fn update(&mut self, truth: &Truth) -> PilotInput {
+        self.player.advance(truth.t_s, &mut self.pilot);
+        let sticks = self.pilot.update(truth);
+        PilotInput {
+            sticks,
+            switch: self.pilot.switch(),
+        }
+    }
+
+    pub fn pilot(&self) -> &Pilot {
+        &self.pilot
+    }
+}
+
 // ------------------------------------------------------------------------------------------
 // Pilot-only runs
 // ------------------------------------------------------------------------------------------
@@ -1308,15 +1368,7 @@ pub fn run_pilot_only(scenario: &Scenario, options: RunOptions) -> FlightSummary
         ..scenario.plant_config()
     };
     let mut plant = Plant::with_config(config, scenario.initial_state(&params), scenario.seed);
-    let mut pilot = Pilot::new(&params, PilotConfig::default());
-    if matches!(scenario.initial, InitialCondition::InFlight { .. }) {
-        pilot.fly(Manoeuvre::Hold {
-            altitude_m: None,
-            heading_rad: None,
-            airspeed_mps: None,
-        });
-    }
-    let mut player = scenario.player();
+    let mut pilot = ScenarioPilot::new(scenario, &params);
     let mut board = ServoBoard::new();
     let dt = options.control_period_s.max(1e-3);
     let steps = (scenario.duration_s / dt).round() as u64;
@@ -1339,12 +1391,7 @@ pub fn run_pilot_only(scenario: &Scenario, options: RunOptions) -> FlightSummary
     let mut was_airborne = !start.on_ground;
     for k in 0..steps {
         let truth = plant.truth();
-        player.advance(truth.t_s, &mut pilot);
-        let sticks = pilot.update(&truth);
-        let input = PilotInput {
-            sticks,
-            switch: pilot.switch(),
-        };
+        let input = pilot.update(&truth);
         let (out, source) = board.mix(plant.time_ns(), &input);
         match source {
             OutputSource::Pilot => summary.time_on_pilot_s += dt,
@@ -1363,7 +1410,7 @@ pub fn run_pilot_only(scenario: &Scenario, options: RunOptions) -> FlightSummary
                 on_ground: truth.on_ground,
                 switch: input.switch,
                 source,
-                pilot_phase: pilot.phase_name(),
+                pilot_phase: pilot.pilot().phase_name(),
             });
         }
         plant.step(dt, &out);
@@ -1384,7 +1431,7 @@ pub fn run_pilot_only(scenario: &Scenario, options: RunOptions) -> FlightSummary
         }
     }
     summary.final_truth = plant.truth();
-    summary.parked = pilot.is_parked();
+    summary.parked = pilot.pilot().is_parked();
     summary
 }
 

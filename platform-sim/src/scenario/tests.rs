@@ -290,6 +290,33 @@ fn shipped_scenarios_parse_to_what_they_say() {
 }
 
 #[test]
+fn overrun_tasks_are_checked_against_the_schedule() {
+    let f = parse(FAULTS);
+    let tasks = [
+        "imu",
+        "estimator",
+        "control",
+        "servo",
+        "gps",
+        "logging",
+        "telemetry",
+        "health",
+    ];
+    assert_eq!(f.check_tasks(&tasks), Ok(()));
+    let e = f
+        .check_tasks(&["imu", "control"])
+        .expect_err("estimator is not there");
+    assert!(e.to_string().contains("\"estimator\""), "{e}");
+    let header = FAULTS
+        .lines()
+        .position(|l| l.contains("task_overrun"))
+        .expect("line")
+        + 1
+        - 3;
+    assert_eq!(e.line, header, "{e}");
+}
+
+#[test]
 fn active_faults_cover_their_window_only() {
     let f = parse(FAULTS);
     let active = |t: f64| -> Vec<FaultKind> { f.active_faults(t).map(|x| x.kind).collect() };
