@@ -1359,9 +1359,28 @@ impl FlightSummary {
     }
 }
 
+/// A command from a stand-in flight computer: what it wants the servos to do and whether it
+/// says it is ready to fly.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ComputerCommand {
+    pub commands: ActuatorCommands,
+    pub autopilot_ready: bool,
+}
+
 /// Flies `scenario` with the scripted pilot alone: no flight computer, so whatever the switch
 /// says the servo board gives the pilot the servos. Deterministic for the scenario's seed.
 pub fn run_pilot_only(scenario: &Scenario, options: RunOptions) -> FlightSummary {
+    run_with_computer(scenario, options, |_| None)
+}
+
+/// Flies `scenario` with the scripted pilot and a stand-in flight computer: `computer` is
+/// asked once per control period, seeing the truth; `None` means it sent nothing then (a
+/// computer that stops answering makes the board fail safe to the pilot after 100 ms).
+pub fn run_with_computer(
+    scenario: &Scenario,
+    options: RunOptions,
+    mut computer: impl FnMut(&Truth) -> Option<ComputerCommand>,
+) -> FlightSummary {
     let params = AircraftParams::aerosonde();
     let config = PlantConfig {
         max_step_s: options.plant_max_step_s,
@@ -1392,6 +1411,9 @@ pub fn run_pilot_only(scenario: &Scenario, options: RunOptions) -> FlightSummary
     for k in 0..steps {
         let truth = plant.truth();
         let input = pilot.update(&truth);
+        if let Some(c) = computer(&truth) {
+            board.receive_computer_command(plant.time_ns(), c.commands, c.autopilot_ready);
+        }
         let (out, source) = board.mix(plant.time_ns(), &input);
         match source {
             OutputSource::Pilot => summary.time_on_pilot_s += dt,

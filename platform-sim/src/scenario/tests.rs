@@ -178,6 +178,58 @@ fn default_scenario_flown_by_the_pilot_alone() {
     assert!(flight_time > 240.0, "{flight_time}");
 }
 
+/// A flight computer that holds the wings level and the nose a little up from the start,
+/// says it is ready, and dies at 140 s, in the middle of the default scenario's AUTO stretch.
+#[test]
+fn board_gives_a_ready_computer_the_servos_on_auto_and_the_pilot_when_it_dies() {
+    let scenario = parse(TAKEOFF_CIRCUIT);
+    let params = AircraftParams::aerosonde();
+    let trim = crate::plant::trim::trim_level_flight(&params, 23.0, 100.0, 0.0).expect("trim");
+    let dies_at_s = 140.0;
+    let computer = |t: &Truth| {
+        (t.t_s < dies_at_s).then(|| ComputerCommand {
+            commands: ActuatorCommands {
+                aileron: -1.5 * t.roll_rad - 0.25 * t.rates_body_radps[0],
+                elevator: trim.commands.elevator + 2.5 * (trim.pitch_rad + 0.05 - t.pitch_rad)
+                    - 0.5 * t.rates_body_radps[1],
+                rudder: 2.0 * t.beta_rad,
+                throttle: trim.commands.throttle,
+                brake: 0.0,
+            },
+            autopilot_ready: true,
+        })
+    };
+    let s = run_with_computer(&scenario, fast(), computer);
+    let source_at = |t_s: f64| {
+        s.samples
+            .iter()
+            .find(|p| p.t_s >= t_s)
+            .map(|p| (p.switch, p.source))
+            .expect("sample")
+    };
+    use OutputSource::*;
+    assert_eq!(source_at(120.0), (SwitchPosition::Manual, Pilot));
+    assert_eq!(source_at(126.0), (SwitchPosition::Auto, Computer));
+    assert_eq!(source_at(139.8), (SwitchPosition::Auto, Computer));
+    assert_eq!(source_at(140.2), (SwitchPosition::Auto, Failsafe));
+    assert_eq!(source_at(166.0), (SwitchPosition::Manual, Pilot));
+    // 15 s on the computer, 25 s of failsafe, and the pilot lands as usual.
+    assert!(
+        (s.time_on_computer_s - 15.0).abs() < 0.2,
+        "{}",
+        s.time_on_computer_s
+    );
+    assert!(
+        (s.time_on_failsafe_s - 25.0).abs() < 0.3,
+        "{}",
+        s.time_on_failsafe_s
+    );
+    // The computer really flew: wings level throughout its stretch.
+    let held: Vec<&TrajectorySample> = s.samples.iter().filter(|p| p.source == Computer).collect();
+    assert!(held.iter().all(|p| p.roll_rad.abs() < 10f64.to_radians()));
+    assert!(s.parked && !s.airframe_strike, "{:?}", s.final_truth);
+}
+
 #[test]
 fn same_seed_flies_the_same_trajectory() {
     // The faults scenario's first minute in moderate turbulence: short, and gusty enough that
