@@ -639,7 +639,8 @@ impl Pilot {
                 };
                 ActuatorCommands {
                     aileron: direction.sign(),
-                    // About neutral: a little push while inverted keeps the nose up there.
+                    // Less up-elevator than trim: relative to trim a push, which keeps the nose
+                    // up while inverted.
                     elevator: 0.1,
                     rudder: 0.0,
                     throttle: 1.0,
@@ -650,7 +651,8 @@ impl Pilot {
                 wing_axis_ned,
                 since_s,
             } => {
-                // Dive for speed (never below 30 m above the entry altitude's floor).
+                // Dive at 15° for speed while there is height for it (above 60 m), else
+                // accelerate level; pull after 15 s whatever the speed.
                 if t.airspeed_mps >= self.config.loop_entry_airspeed_mps || t.t_s - since_s > 15.0 {
                     self.phase = Phase::LoopPull {
                         wing_axis_ned,
