@@ -42,16 +42,6 @@ fn print_trace(summary: &FlightSummary) {
     );
 }
 
-/// The step the long flights use: the plant's 5 ms RK4 instead of 1 ms, so the five-minute
-/// flight runs in seconds in a debug build. The flights are checked for the same outcome at
-/// 1, 2, 5 and 10 ms (see `explore_default`).
-fn fast() -> RunOptions {
-    RunOptions {
-        plant_max_step_s: 0.005,
-        ..RunOptions::default()
-    }
-}
-
 fn unwrapped_roll_change(samples: &[&TrajectorySample]) -> f64 {
     samples
         .windows(2)
@@ -62,7 +52,7 @@ fn unwrapped_roll_change(samples: &[&TrajectorySample]) -> f64 {
 #[test]
 fn default_scenario_flown_by_the_pilot_alone() {
     let scenario = parse(TAKEOFF_CIRCUIT);
-    let s = run_pilot_only(&scenario, fast());
+    let s = run_pilot_only(&scenario, RunOptions::default());
     print_trace(&s);
 
     // Lifts off within the first 300 m of runway, on the centreline.
@@ -199,7 +189,7 @@ fn board_gives_a_ready_computer_the_servos_on_auto_and_the_pilot_when_it_dies() 
             autopilot_ready: true,
         })
     };
-    let s = run_with_computer(&scenario, fast(), computer);
+    let s = run_with_computer(&scenario, RunOptions::default(), computer);
     let source_at = |t_s: f64| {
         s.samples
             .iter()
@@ -267,7 +257,7 @@ fn faults_scenario_flies_and_lands_with_every_fault_kind() {
     for w in scenario.faults.windows(2) {
         assert!(w[1].t_s > w[0].end_s(), "{:?} overlaps {:?}", w[0], w[1]);
     }
-    let s = run_pilot_only(&scenario, fast());
+    let s = run_pilot_only(&scenario, RunOptions::default());
     assert!(
         s.liftoff.is_some() && s.parked && !s.airframe_strike,
         "{:?}",
