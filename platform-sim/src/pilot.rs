@@ -50,6 +50,16 @@ pub struct Runway {
 }
 
 impl Runway {
+    /// The point `along_m` past the touchdown point and `cross_m` right of the centreline,
+    /// (north, east).
+    pub fn point_at(&self, along_m: f64, cross_m: f64) -> [f64; 2] {
+        let (s, c) = self.heading_rad.sin_cos();
+        [
+            self.touchdown_ne_m[0] + along_m * c - cross_m * s,
+            self.touchdown_ne_m[1] + along_m * s + cross_m * c,
+        ]
+    }
+
     /// (along, cross) of a point: metres past the touchdown point along the landing direction,
     /// and metres right of the centreline.
     pub fn along_cross_m(&self, north_m: f64, east_m: f64) -> (f64, f64) {
@@ -206,6 +216,7 @@ enum Phase {
     Base {
         runway: Runway,
         glide_slope_rad: f64,
+        final_length_m: f64,
         side: f64,
     },
     Final {
@@ -252,6 +263,14 @@ pub struct Pilot {
 pub fn wrap_pi(a: f64) -> f64 {
     let w = (a + PI).rem_euclid(TAU) - PI;
     if w <= -PI { w + TAU } else { w }
+}
+
+/// How far to the side of the runway the pilot flies the downwind leg (m): a few turn radii.
+const DOWNWIND_OFFSET_M: f64 = 350.0;
+
+/// Bearing (rad, 0 = north) from the airplane to a (north, east) point.
+fn bearing_to(t: &Truth, point_ne_m: [f64; 2]) -> f64 {
+    (point_ne_m[1] - t.position_ned_m[1]).atan2(point_ne_m[0] - t.position_ned_m[0])
 }
 
 fn rate_limit(from: f64, to: f64, max_step: f64) -> f64 {
@@ -432,10 +451,14 @@ impl Pilot {
                     Phase::Base {
                         runway,
                         glide_slope_rad,
+                        final_length_m,
                         side,
                     }
                 } else {
-                    self.altitude_m = final_length_m * glide_slope_rad.tan();
+                    // Circuit height on the downwind leg (at most 100 m, at least the gate's
+                    // height), down to the gate's on base.
+                    let gate_height = final_length_m * glide_slope_rad.tan();
+                    self.altitude_m = t.height_above_ground_m.min(100.0).max(gate_height);
                     Phase::Downwind {
                         runway,
                         glide_slope_rad,
@@ -556,6 +579,17 @@ impl Pilot {
 
     fn bank_for_heading(&self, t: &Truth, heading_rad: f64, max_bank_rad: f64) -> f64 {
         (1.5 * wrap_pi(heading_rad - t.yaw_rad)).clamp(-max_bank_rad, max_bank_rad)
+    }
+
+    /// Bank to bring the ground track onto `course_rad` (the heading when barely moving).
+    fn bank_for_course(&self, t: &Truth, course_rad: f64, max_bank_rad: f64) -> f64 {
+        let [vn, ve, _] = t.velocity_ned_mps;
+        let course = if vn.hypot(ve) > 5.0 {
+            ve.atan2(vn)
+        } else {
+            t.yaw_rad
+        };
+        (1.5 * wrap_pi(course_rad - course)).clamp(-max_bank_rad, max_bank_rad)
     }
 
     /// Flies altitude, heading and airspeed targets with the given bank limit.
@@ -710,23 +744,29 @@ impl Pilot {
                 final_length_m,
                 side,
             } => {
-                let (along, cross) = runway.along_cross_m(t.position_ned_m[0], t.position_ned_m[1]);
-                // Fly the reciprocal of the runway heading, a couple of turn radii to the side.
-                let offset = side * 350.0;
-                let heading = runway.heading_rad + PI - (0.004 * (offset - cross)).clamp(-0.5, 0.5);
-                if along < -final_length_m {
+                // Head for the base turn: abeam the final approach gate, a few turn radii to
+                // the side, by ground track (so the wind does not push the circuit about).
+                let (along, _) = runway.along_cross_m(t.position_ned_m[0], t.position_ned_m[1]);
+                let base_turn = runway.point_at(-final_length_m, side * DOWNWIND_OFFSET_M);
+                let distance =
+                    (base_turn[0] - t.position_ned_m[0]).hypot(base_turn[1] - t.position_ned_m[1]);
+                if along < -final_length_m || distance < 100.0 {
+                    self.altitude_m = final_length_m * glide_slope_rad.tan();
                     self.phase = Phase::Base {
                         runway,
                         glide_slope_rad,
+                        final_length_m,
                         side,
                     };
                 }
-                let bank = self.bank_for_heading(t, wrap_pi(heading), self.config.max_bank_rad);
+                let bank =
+                    self.bank_for_course(t, bearing_to(t, base_turn), self.config.max_bank_rad);
                 self.hold(t, dt, bank)
             }
             Phase::Base {
                 runway,
                 glide_slope_rad,
+                final_length_m,
                 side,
             } => {
                 let (_, cross) = runway.along_cross_m(t.position_ned_m[0], t.position_ned_m[1]);
@@ -736,8 +776,8 @@ impl Pilot {
                         glide_slope_rad,
                     };
                 }
-                let heading = wrap_pi(runway.heading_rad - side * FRAC_PI_2);
-                let bank = self.bank_for_heading(t, heading, self.config.max_bank_rad);
+                let gate = runway.point_at(-final_length_m, 0.0);
+                let bank = self.bank_for_course(t, bearing_to(t, gate), self.config.max_bank_rad);
                 self.hold(t, dt, bank)
             }
             Phase::Final {

@@ -666,6 +666,8 @@ fn explore_robustness() {
                     s.seed = seed;
                     s.turbulence = turbulence;
                     s.wind_ned_mps = wind;
+                    // Time enough to land whatever the wind did to the circuit.
+                    s.duration_s += 120.0;
                     let r = run_pilot_only(
                         &s,
                         RunOptions {
