@@ -265,6 +265,9 @@ pub fn wrap_pi(a: f64) -> f64 {
     if w <= -PI { w + TAU } else { w }
 }
 
+const ROLLOUT_ELEVATOR: f64 = 0.5;
+const ROLLOUT_BRAKE: f64 = 0.6;
+
 /// How far to the side of the runway the pilot flies the downwind leg (m): a few turn radii.
 const DOWNWIND_OFFSET_M: f64 = 350.0;
 
@@ -916,12 +919,18 @@ impl Pilot {
         if ground_speed < 0.05 {
             self.phase = Phase::Parked;
         }
+        // Stick back and moderate brakes: full brakes with the stick forward can tip the
+        // airplane onto its nose and a wing tip when a gust lifts a wing.
         ActuatorCommands {
             aileron: self.aileron_for_roll(t, 0.0),
-            elevator: 0.0,
+            elevator: ROLLOUT_ELEVATOR,
             rudder: self.centreline_rudder(t, runway),
             throttle: 0.0,
-            brake: if t.airspeed_mps < 15.0 { 1.0 } else { 0.0 },
+            brake: if ground_speed < 15.0 {
+                ROLLOUT_BRAKE
+            } else {
+                0.0
+            },
         }
     }
 }

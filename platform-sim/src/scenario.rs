@@ -1341,6 +1341,8 @@ pub struct FlightSummary {
     pub max_distance_m: f64,
     /// An airframe strike (tail, wing tip, crash) at any moment.
     pub airframe_strike: bool,
+    /// The first one's time and the truth then.
+    pub first_strike: Option<Truth>,
     /// The pilot's landing ended with the airplane stopped.
     pub parked: bool,
     /// Time the board spent on each source (s): pilot, computer, failsafe.
@@ -1402,6 +1404,7 @@ pub fn run_with_computer(
         max_height_m: start.height_above_ground_m,
         max_distance_m: 0.0,
         airframe_strike: false,
+        first_strike: None,
         parked: false,
         time_on_pilot_s: 0.0,
         time_on_computer_s: 0.0,
@@ -1437,7 +1440,10 @@ pub fn run_with_computer(
         }
         plant.step(dt, &out);
         let t = plant.truth();
-        summary.airframe_strike |= t.airframe_strike;
+        if t.airframe_strike && !summary.airframe_strike {
+            summary.airframe_strike = true;
+            summary.first_strike = Some(t);
+        }
         summary.max_height_m = summary.max_height_m.max(t.height_above_ground_m);
         summary.max_distance_m = summary
             .max_distance_m

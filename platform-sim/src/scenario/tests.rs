@@ -700,6 +700,21 @@ fn explore_robustness() {
                         low,
                         r.max_distance_m
                     );
+                    if let Some(t) = r.first_strike {
+                        println!(
+                            "    strike at {:.1} s: n {:.0} e {:.1} h {:.2} V {:.1} roll {:.1} pitch {:.1} yaw {:.1} vd {:.2} gnd {}",
+                            t.t_s,
+                            t.position_ned_m[0],
+                            t.position_ned_m[1],
+                            t.height_above_ground_m,
+                            t.airspeed_mps,
+                            t.roll_rad.to_degrees(),
+                            t.pitch_rad.to_degrees(),
+                            t.yaw_rad.to_degrees(),
+                            t.velocity_ned_mps[2],
+                            t.on_ground
+                        );
+                    }
                 }
             }
         }
