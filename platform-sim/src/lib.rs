@@ -5,6 +5,11 @@
 //!
 //! [`plant`] is the simulated airplane: 6-DOF dynamics, wind, ground contact and the sensor
 //! models, all in virtual time and deterministic for a seed.
+//!
+//! [`pilot`] is a scripted human pilot flying manoeuvres with the sticks; [`servo_board`] is
+//! the board's choice between pilot and flight computer (manual switch, `autopilot_ready`,
+//! 100 ms failsafe); [`scenario`] reads scenario files (`scenarios/*.toml`: initial state,
+//! wind, a timeline of manoeuvres and switch changes, injected faults) and flies them.
 
 pub mod pilot;
 pub mod plant;
