@@ -720,3 +720,43 @@ fn explore_robustness() {
         }
     }
 }
+
+#[test]
+fn load_reads_a_file_and_names_it_in_errors() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenarios");
+    let s = Scenario::load(&dir.join("takeoff-circuit.toml")).expect("shipped scenario");
+    assert_eq!(s, parse(TAKEOFF_CIRCUIT));
+    let missing = dir.join("no-such-scenario.toml");
+    let e = Scenario::load(&missing).expect_err("missing file");
+    assert!(e.to_string().contains("no-such-scenario.toml"), "{e}");
+}
+
+mod robustness {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 64, ..ProptestConfig::default() })]
+
+        /// The shipped scenario with a piece cut out and junk put in never panics the parser,
+        /// and any error points inside the text.
+        #[test]
+        fn damaged_scenarios_never_panic(
+            cut_at in 0usize..2000,
+            cut_len in 0usize..40,
+            junk in "[ -~\n]{0,12}",
+        ) {
+            let src = TAKEOFF_CIRCUIT;
+            let mut at = cut_at.min(src.len());
+            while !src.is_char_boundary(at) { at -= 1; }
+            let mut end = (at + cut_len).min(src.len());
+            while !src.is_char_boundary(end) { end -= 1; }
+            let damaged = format!("{}{}{}", &src[..at], junk, &src[end..]);
+            if let Err(e) = Scenario::parse(&damaged) {
+                let text = e.to_string();
+                prop_assert!(!text.contains('\n'), "{}", text);
+                prop_assert!(e.line <= damaged.lines().count() + 1, "{}", text);
+            }
+        }
+    }
+}
