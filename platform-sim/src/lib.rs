@@ -4,11 +4,20 @@
 //! spin: a run is deterministic and as fast as the machine allows.
 //!
 //! [`plant`] is the simulated airplane: 6-DOF dynamics, wind, ground contact and the sensor
-//! models, all in virtual time and deterministic for a seed. [`world`] puts the airplane's
-//! devices on the wire, byte for byte as the hardware's, and [`timer`] advances the world
-//! between the executive's frames.
+//! models, all in virtual time and deterministic for a seed.
+//!
+//! [`pilot`] is a scripted human pilot flying manoeuvres with the sticks; [`servo_board`] is
+//! the board's choice between pilot and flight computer (manual switch, `autopilot_ready`,
+//! 100 ms failsafe); [`scenario`] reads scenario files (`scenarios/*.toml`: initial state,
+//! wind, a timeline of manoeuvres and switch changes, injected faults) and flies them.
+//!
+//! [`world`] puts the airplane's devices on the wire, byte for byte as the hardware's, and
+//! [`timer`] advances the world between the executive's frames.
 
+pub mod pilot;
 pub mod plant;
+pub mod scenario;
+pub mod servo_board;
 pub mod timer;
 pub mod world;
 
