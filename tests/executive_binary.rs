@@ -521,10 +521,11 @@ fn a_run_logs_its_timing_records_readably_for_skyframe_log() {
         .find(|f| f.ends_with("/executive.bin"))
         .expect("executive log");
     assert!(file.starts_with(dir.to_str().expect("utf-8")), "{file}");
-    assert_eq!(
-        s["log_streams"][0]["records_written"], 54,
-        "definition, comment, begin, 50 frames, end"
-    );
+    // Definition, comment, begin, one record per frame run (a loaded machine may miss
+    // whole frames, which leave no record), end.
+    let frames_run = s["frames"].as_u64().unwrap_or(0);
+    assert!(frames_run >= 45, "{s}");
+    assert_eq!(s["log_streams"][0]["records_written"], 4 + frames_run);
     // health.bin: a snapshot of the 8 tasks at 0 s and at shutdown, between its begin/end.
     assert_eq!(s["log_streams"][1]["name"], "health");
     assert_eq!(s["log_streams"][1]["records_written"], 2 + 1 + 16 + 1);

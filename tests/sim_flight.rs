@@ -7,18 +7,15 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 fn sim_fast(dir: &Path, seconds: &str, seed: &str) -> Value {
+    sim_fast_with(dir, &["--duration", seconds, "--seed", seed])
+}
+
+/// `skyframe sim --fast --json` logging into `dir`, plus `extra` arguments.
+fn sim_fast_with(dir: &Path, extra: &[&str]) -> Value {
     let out = skyframe()
-        .args([
-            "sim",
-            "--fast",
-            "--json",
-            "--duration",
-            seconds,
-            "--seed",
-            seed,
-            "--log-dir",
-        ])
+        .args(["sim", "--fast", "--json", "--log-dir"])
         .arg(dir)
+        .args(extra)
         .output()
         .expect("runs");
     assert!(
@@ -125,33 +122,16 @@ fn the_simulated_devices_decode_cleanly_and_the_airplane_flies() {
         "{epochs} GPS epochs in 30 s"
     );
 
-    // Truth: still flying near 100 m after 30 s of light turbulence with the pilot holding trim.
+    // Truth: the default scenario's pilot took off (after ~5 s) and is climbing out.
     let flight = PathBuf::from(report["flight_dir"].as_str().expect("dir"));
-    let out = dir.join("csv");
-    let run = Command::new(binary("skyframe-log", "skyframe-log"))
-        .arg("to-csv")
-        .arg(&flight)
-        .arg("--out-dir")
-        .arg(&out)
-        .output()
-        .expect("converter");
-    assert!(
-        run.status.success(),
-        "every log whole: {}",
-        String::from_utf8_lossy(&run.stderr)
-    );
-    let truth = std::fs::read_to_string(out.join("truth.1.csv")).expect("truth");
-    let last: Vec<f64> = truth
-        .lines()
-        .last()
-        .expect("rows")
-        .split(',')
-        .map(|v| v.parse().unwrap_or(f64::NAN))
-        .collect();
-    let (north, down, airspeed) = (last[1], last[3], last[13]);
-    assert!(north > 500.0, "flew north: {north}");
-    assert!((-140.0..-60.0).contains(&down), "altitude {}", -down);
-    assert!((18.0..32.0).contains(&airspeed), "airspeed {airspeed}");
+    let out = convert(&flight, &dir.join("csv"));
+    let truth = rows(&out.join("truth.1.csv"));
+    let last = truth.last().expect("rows");
+    let (north, altitude, airspeed, on_ground) = (last[1], -last[3], last[13], last[19]);
+    assert!(north.abs() > 300.0, "flew away from the start: {north}");
+    assert!((30.0..250.0).contains(&altitude), "altitude {altitude}");
+    assert!((15.0..35.0).contains(&airspeed), "airspeed {airspeed}");
+    assert_eq!(on_ground, 0.0);
     // The GPS log: mostly valid fixes (the receiver model loses one now and then, as the
     // seed's did in Fig. 6-1), invalid ones with empty (NaN) positions.
     let gps = std::fs::read_to_string(out.join("gps.1.csv")).expect("gps");
@@ -169,6 +149,140 @@ fn the_simulated_devices_decode_cleanly_and_the_airplane_flies() {
     assert!(
         rows.iter().filter(|r| r[1] == "0").all(|r| r[4] == "nan"),
         "no position without a fix"
+    );
+}
+
+/// `skyframe-log to-csv` of a flight directory; every log must be whole (exit 0).
+fn convert(flight: &Path, out: &Path) -> PathBuf {
+    let run = Command::new(binary("skyframe-log", "skyframe-log"))
+        .arg("to-csv")
+        .arg(flight)
+        .arg("--out-dir")
+        .arg(out)
+        .output()
+        .expect("converter");
+    assert!(
+        run.status.success(),
+        "every log whole: {}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    out.to_path_buf()
+}
+
+/// The data rows of a CSV as numbers (NaN for anything else), time first.
+fn rows(csv: &Path) -> Vec<Vec<f64>> {
+    std::fs::read_to_string(csv)
+        .unwrap_or_else(|e| panic!("{}: {e}", csv.display()))
+        .lines()
+        .filter(|l| !l.starts_with('%'))
+        .map(|l| {
+            l.split(',')
+                .map(|v| v.parse().unwrap_or(f64::NAN))
+                .collect()
+        })
+        .collect()
+}
+
+#[test]
+fn the_default_scenario_takes_off_flies_its_aerobatics_and_lands() {
+    let dir = scratch("sim-default");
+    let report = sim_fast_with(&dir, &[]);
+    assert_eq!(report["stop_reason"], "duration");
+    assert!((report["elapsed_s"].as_f64().unwrap_or(0.0) - 300.0).abs() < 0.1);
+    let flight = PathBuf::from(report["flight_dir"].as_str().expect("dir"));
+    let truth = rows(&convert(&flight, &dir.join("csv")).join("truth.1.csv"));
+    let airborne: Vec<&Vec<f64>> = truth.iter().filter(|r| r[19] == 0.0).collect();
+    let first = airborne.first().map_or(f64::NAN, |r| r[0]);
+    let last = airborne.last().map_or(f64::NAN, |r| r[0]);
+    assert!((3.0..10.0).contains(&first), "lift-off at {first} s");
+    assert!((200.0..295.0).contains(&last), "touchdown at {last} s");
+    let max_roll = truth.iter().map(|r| r[7].abs()).fold(0.0, f64::max);
+    let max_pitch = truth.iter().map(|r| r[8]).fold(f64::MIN, f64::max);
+    assert!(
+        max_roll > 3.0,
+        "the aileron roll went past 170 degrees: {max_roll} rad"
+    );
+    assert!(
+        max_pitch > 1.3,
+        "the loop went past 75 degrees of pitch: {max_pitch} rad"
+    );
+    let end = truth.last().expect("rows");
+    assert_eq!(end[19], 1.0, "on the ground at the end");
+    assert!(end[13] < 5.0, "rolled out: {} m/s", end[13]);
+}
+
+#[test]
+fn the_faults_scenario_shows_each_fault_in_health_and_logs() {
+    let dir = scratch("sim-faults");
+    let scenario = skyframe_tests::workspace().join("scenarios/faults.toml");
+    let report = sim_fast_with(&dir, &["--scenario", scenario.to_str().expect("utf-8")]);
+    assert_eq!(report["stop_reason"], "duration", "the run completes");
+    let device = |name: &str| -> &Value {
+        report["devices"]
+            .as_array()
+            .and_then(|d| d.iter().find(|d| d["name"] == name))
+            .expect("device")
+    };
+    let task = |name: &str| -> &Value {
+        report["tasks"]
+            .as_array()
+            .and_then(|t| t.iter().find(|t| t["name"] == name))
+            .expect("task")
+    };
+    // IMU silence (2 s at 35 s) and a garbage burst (45 s).
+    assert!(
+        device("imu")["stale_events"].as_u64().unwrap_or(0) >= 1,
+        "{}",
+        device("imu")
+    );
+    let imu_errors = [
+        "bad_checksum",
+        "framing_errors",
+        "overflows",
+        "bytes_discarded",
+    ]
+    .iter()
+    .map(|k| device("imu")[k].as_u64().unwrap_or(0))
+    .sum::<u64>();
+    assert!(imu_errors > 0, "garbage counted: {}", device("imu"));
+    // GPS silence (3 s at 85 s) goes stale; the servo port vanishes (2 s at 95 s).
+    assert!(
+        device("gps")["stale_events"].as_u64().unwrap_or(0) >= 1,
+        "{}",
+        device("gps")
+    );
+    assert!(
+        device("servo")["stale_events"].as_u64().unwrap_or(0) >= 1,
+        "{}",
+        device("servo")
+    );
+    // The estimator forced to overrun by 4 ms for 1 s at 75 s: 100 releases over budget.
+    assert!(
+        task("estimator")["overruns_budget"].as_u64().unwrap_or(0) >= 100,
+        "{}",
+        task("estimator")
+    );
+
+    let flight = PathBuf::from(report["flight_dir"].as_str().expect("dir"));
+    let out = convert(&flight, &dir.join("csv"));
+    // GPS loss (10 s at 55 s): invalid fixes logged in that window.
+    let gps = rows(&out.join("gps.1.csv"));
+    let t0 = gps.first().map_or(0.0, |r| r[0]);
+    let lost = gps
+        .iter()
+        .filter(|r| (56.0..64.0).contains(&(r[0] - t0)) && r[1] == 0.0)
+        .count();
+    assert!(lost >= 40, "{lost} invalid fixes during the GPS loss");
+    // The health log shows the devices degraded while silent.
+    let health = rows(&out.join("health.1.csv"));
+    let degraded = |index: f64| health.iter().any(|r| r[1] == index && r[16] == 1.0);
+    assert!(degraded(0.0), "imu degraded in health.bin");
+    assert!(degraded(6.0), "gps degraded in health.bin");
+    // The device status records show the stale flag at the time.
+    let imu_status = rows(&out.join("imu.3.csv"));
+    assert!(
+        imu_status.iter().any(|r| r[10] == 1.0),
+        "imu status records stale"
     );
 }
 

@@ -9,8 +9,12 @@
 //! the bytes go ([`DeviceLink`]) is the caller's: rings in process, pseudo-terminals for
 //! `skyframe-sim --pty`.
 
+use crate::pilot::SwitchPosition;
 use crate::plant::sensors::{GpsFixType, GpsSample};
 use crate::plant::{ActuatorCommands, Plant, Truth};
+pub use crate::scenario::Device;
+use crate::scenario::{Fault, FaultKind, Scenario, ScenarioPilot};
+use crate::servo_board::{OutputSource, PilotInput, ServoBoard};
 use skyframe_core::devices::gps::{
     FixDimension, FixQuality, GpsFix, SentenceKind, Talker, encode_sentence,
 };
@@ -18,28 +22,16 @@ use skyframe_core::devices::imu::{
     IMU_FRAME_LEN, ImuMeasurement, ImuSlowRecord, ImuStatus, ImuStreamEncoder,
 };
 use skyframe_core::devices::servo::{
-    BoardStatus, PILOT_FRAME_LEN, PilotReport, ServoCommand, ServoCommandDecoder,
-    encode_pilot_frame, pulse_us_to_surface, pulse_us_to_throttle, surface_to_pulse_us,
-    throttle_to_pulse_us,
+    BoardStatus, PILOT_FRAME_LEN, PilotReport, ServoCommandDecoder, encode_pilot_frame,
+    pulse_us_to_surface, pulse_us_to_throttle, surface_to_pulse_us, throttle_to_pulse_us,
 };
 
 const MS: u64 = 1_000_000;
 const PLANT_STEP_NS: u64 = MS;
 const IMU_PERIOD_NS: u64 = 10 * MS;
 const BOARD_PERIOD_NS: u64 = 20 * MS;
-/// The board keeps following the computer for this long after its last command frame, then
-/// falls back to the pilot (the computer has died).
-const COMMAND_TIMEOUT_NS: u64 = 100 * MS;
 /// UTC time of day at simulation time zero (noon): GPS sentences carry time of day.
 const UTC_START_MS: u64 = 12 * 3_600_000;
-
-/// Which device a byte stream belongs to.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Device {
-    Imu,
-    Gps,
-    Servo,
-}
 
 /// Where the devices' bytes go and where the computer's commands come from.
 pub trait DeviceLink {
@@ -49,41 +41,37 @@ pub trait DeviceLink {
     fn receive_from_computer(&mut self, buf: &mut [u8]) -> usize;
 }
 
-/// The pilot's transmitter: sticks normalised as `conventions.md` says, the auto/manual
-/// switch, and the wheel brakes (which the pilot works directly, not through the board).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct Sticks {
-    pub aileron: f64,
-    pub elevator: f64,
-    pub throttle: f64,
-    pub rudder: f64,
-    pub brake: f64,
-    pub auto: bool,
+/// Whoever holds the pilot's transmitter: sticks, brakes and the auto/manual switch.
+pub trait Transmitter {
+    fn update(&mut self, truth: &Truth) -> PilotInput;
 }
 
-/// Whoever holds the transmitter.
-pub trait Pilot {
-    fn sticks(&mut self, truth: &Truth) -> Sticks;
+impl Transmitter for ScenarioPilot {
+    fn update(&mut self, truth: &Truth) -> PilotInput {
+        ScenarioPilot::update(self, truth)
+    }
 }
 
-/// A pilot who holds the sticks still: enough for a trimmed airplane to fly straight.
-pub struct SteadyPilot(pub Sticks);
+/// A transmitter whose sticks never move: enough for a trimmed airplane to fly straight.
+pub struct SteadySticks(pub PilotInput);
 
-impl Pilot for SteadyPilot {
-    fn sticks(&mut self, _truth: &Truth) -> Sticks {
+impl Transmitter for SteadySticks {
+    fn update(&mut self, _truth: &Truth) -> PilotInput {
         self.0
     }
 }
 
-/// Faults the world can be told to produce (scenario files schedule them).
+/// What the devices are made to do wrong right now (scenario faults).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct DeviceFaults {
-    /// The device sends nothing.
+    /// The device sends nothing (IMU, GPS, servo board).
     pub silent: [bool; 3],
     /// The device sends garbage bytes between its frames.
     pub garbage: [bool; 3],
     /// The GPS reports no fix.
     pub gps_loss: bool,
+    /// The servo board's port is gone: nothing either way.
+    pub servo_vanished: bool,
 }
 
 fn device_slot(device: Device) -> usize {
@@ -91,6 +79,32 @@ fn device_slot(device: Device) -> usize {
         Device::Imu => 0,
         Device::Gps => 1,
         Device::Servo => 2,
+    }
+}
+
+impl DeviceFaults {
+    /// The faults of `scenario` active at `t_s` (task overruns are the executive's).
+    pub fn at(faults: &[Fault], t_s: f64) -> Self {
+        let mut out = Self::default();
+        for f in faults.iter().filter(|f| f.is_active(t_s)) {
+            let slot = f.device.map(device_slot);
+            match (f.kind, slot) {
+                (FaultKind::SensorSilence, Some(i)) => {
+                    if let Some(s) = out.silent.get_mut(i) {
+                        *s = true;
+                    }
+                }
+                (FaultKind::GarbageBurst, Some(i)) => {
+                    if let Some(g) = out.garbage.get_mut(i) {
+                        *g = true;
+                    }
+                }
+                (FaultKind::GpsLoss, _) => out.gps_loss = true,
+                (FaultKind::ServoPortVanish, _) => out.servo_vanished = true,
+                _ => {}
+            }
+        }
+        out
     }
 }
 
@@ -107,36 +121,50 @@ pub struct WorldStats {
 
 pub struct SimWorld {
     plant: Plant,
-    pilot: Box<dyn Pilot + Send>,
+    transmitter: Box<dyn Transmitter + Send>,
+    board: ServoBoard,
     imu: ImuStreamEncoder,
     next_imu_ns: u64,
     next_board_ns: u64,
     board_counter: u8,
     commands: ServoCommandDecoder,
-    last_command: Option<(ServoCommand, u64)>,
-    sticks: Sticks,
+    pilot_input: PilotInput,
+    scheduled_faults: Vec<Fault>,
     faults: DeviceFaults,
     garbage_state: u32,
     stats: WorldStats,
 }
 
 impl SimWorld {
-    pub fn new(plant: Plant, pilot: Box<dyn Pilot + Send>) -> Self {
+    pub fn new(plant: Plant, transmitter: Box<dyn Transmitter + Send>) -> Self {
         let start = plant.time_ns();
         Self {
             plant,
-            pilot,
+            transmitter,
+            board: ServoBoard::new(),
             imu: ImuStreamEncoder::new(),
             next_imu_ns: start,
             next_board_ns: start,
             board_counter: 0,
             commands: ServoCommandDecoder::new(u64::MAX),
-            last_command: None,
-            sticks: Sticks::default(),
+            pilot_input: PilotInput::default(),
+            scheduled_faults: Vec::new(),
             faults: DeviceFaults::default(),
             garbage_state: 0x9E37_79B9,
             stats: WorldStats::default(),
         }
+    }
+
+    /// The world of a scenario: its airplane, wind, GPS, pilot and faults; `seed` overrides
+    /// the scenario's.
+    pub fn from_scenario(scenario: &Scenario, seed: Option<u64>) -> Self {
+        let config = scenario.plant_config();
+        let initial = scenario.initial_state(&config.params);
+        let pilot = ScenarioPilot::new(scenario, &config.params);
+        let plant = Plant::with_config(config, initial, seed.unwrap_or(scenario.seed));
+        let mut world = Self::new(plant, Box::new(pilot));
+        world.scheduled_faults = scenario.faults.clone();
+        world
     }
 
     pub fn truth(&self) -> Truth {
@@ -151,21 +179,31 @@ impl SimWorld {
         self.stats
     }
 
-    pub fn sticks(&self) -> Sticks {
-        self.sticks
+    /// What the pilot is doing with the transmitter.
+    pub fn pilot_input(&self) -> PilotInput {
+        self.pilot_input
     }
 
+    /// Faults on top of the scenario's (tests).
     pub fn set_faults(&mut self, faults: DeviceFaults) {
         self.faults = faults;
     }
 
     /// Moves the world to `t_ns`, exchanging bytes with the computer through `link`.
     pub fn advance_to(&mut self, t_ns: u64, link: &mut dyn DeviceLink) {
+        let forced = self.faults;
         while self.plant.time_ns() < t_ns {
+            self.faults = merge(
+                forced,
+                DeviceFaults::at(&self.scheduled_faults, self.plant.time_s()),
+            );
             self.read_commands(link);
             let truth = self.plant.truth();
-            self.sticks = self.pilot.sticks(&truth);
-            let actuators = self.board_outputs();
+            self.pilot_input = self.transmitter.update(&truth);
+            let (actuators, source) = self.board.mix(self.plant.time_ns(), &self.pilot_input);
+            if source == OutputSource::Computer {
+                self.stats.computer_steps += 1;
+            }
             self.plant.step(PLANT_STEP_NS as f64 * 1e-9, &actuators);
             let now = self.plant.time_ns();
             if now >= self.next_imu_ns {
@@ -180,6 +218,7 @@ impl SimWorld {
                 self.send_board_report(link);
             }
         }
+        self.faults = forced;
     }
 
     fn read_commands(&mut self, link: &mut dyn DeviceLink) {
@@ -189,6 +228,10 @@ impl SimWorld {
             if n == 0 {
                 break;
             }
+            if self.faults.servo_vanished {
+                // Unplugged: the computer's bytes go nowhere.
+                continue;
+            }
             let now = self.plant.time_ns();
             let mut latest = None;
             self.commands
@@ -197,39 +240,17 @@ impl SimWorld {
                 });
             if let Some(command) = latest {
                 self.stats.command_frames += 1;
-                self.last_command = Some((command, now));
-            }
-        }
-    }
-
-    /// The board's rule: the computer flies only when the pilot's switch says auto, the
-    /// computer says it is ready, and its commands are fresh; manual wins at once.
-    fn board_outputs(&mut self) -> ActuatorCommands {
-        let now = self.plant.time_ns();
-        let pilot = ActuatorCommands {
-            aileron: self.sticks.aileron,
-            elevator: self.sticks.elevator,
-            rudder: self.sticks.rudder,
-            throttle: self.sticks.throttle,
-            brake: self.sticks.brake,
-        };
-        match self.last_command {
-            Some((command, at))
-                if self.sticks.auto
-                    && command.autopilot_ready
-                    && now.saturating_sub(at) <= COMMAND_TIMEOUT_NS =>
-            {
-                self.stats.computer_steps += 1;
                 let ch = |i: usize| command.channels_us.get(i).copied().unwrap_or(1500);
-                ActuatorCommands {
+                let commands = ActuatorCommands {
                     aileron: f64::from(pulse_us_to_surface(ch(0))),
                     elevator: f64::from(pulse_us_to_surface(ch(1))),
                     throttle: f64::from(pulse_us_to_throttle(ch(2))),
                     rudder: f64::from(pulse_us_to_surface(ch(3))),
-                    brake: self.sticks.brake,
-                }
+                    brake: 0.0,
+                };
+                self.board
+                    .receive_computer_command(now, commands, command.autopilot_ready);
             }
-            _ => pilot,
         }
     }
 
@@ -254,11 +275,14 @@ impl SimWorld {
     }
 
     fn silent(&self, device: Device) -> bool {
-        self.faults
-            .silent
-            .get(device_slot(device))
-            .copied()
-            .unwrap_or(false)
+        let vanished = device == Device::Servo && self.faults.servo_vanished;
+        vanished
+            || self
+                .faults
+                .silent
+                .get(device_slot(device))
+                .copied()
+                .unwrap_or(false)
     }
 
     fn send_imu(&mut self, link: &mut dyn DeviceLink) {
@@ -320,10 +344,10 @@ impl SimWorld {
         if self.silent(Device::Servo) {
             return;
         }
-        let s = self.sticks;
-        let computer = matches!(self.last_command, Some((c, at))
-            if s.auto && c.autopilot_ready
-                && self.plant.time_ns().saturating_sub(at) <= COMMAND_TIMEOUT_NS);
+        let input = self.pilot_input;
+        let s = input.sticks;
+        let auto = input.switch == SwitchPosition::Auto;
+        let computer = self.board.last_source() == Some(OutputSource::Computer);
         let report = PilotReport {
             pilot_us: [
                 surface_to_pulse_us(s.aileron as f32),
@@ -335,7 +359,7 @@ impl SimWorld {
                 1500,
                 1500,
             ],
-            switch_us: if s.auto { 1900 } else { 1100 },
+            switch_us: if auto { 1900 } else { 1100 },
             logic_battery_v: battery.avionics_voltage_v as f32,
             servo_battery_v: battery.propulsion_voltage_v as f32,
             status: BoardStatus(if computer {
@@ -405,32 +429,12 @@ pub fn gps_fix(sample: &GpsSample, forced_loss: bool) -> GpsFix {
     }
 }
 
-/// A world for a flight without a scenario: the airplane trimmed in level flight at 100 m,
-/// 25 m/s, heading north, in light turbulence, with the GPS the seed had (140 ms mean
-/// period), and a pilot holding the trim.
-pub fn cruise_world(seed: u64) -> Result<SimWorld, String> {
-    use crate::plant::sensors::GpsConfig;
-    use crate::plant::wind::{DrydenParams, WindConfig};
-    use crate::plant::{PlantConfig, trim::trim_level_flight};
-    let config = PlantConfig {
-        wind: WindConfig {
-            steady_ned_mps: [0.0, 2.0, 0.0],
-            turbulence: Some(DrydenParams::light_low_altitude()),
-        },
-        gps: GpsConfig::seed_receiver(),
-        ..PlantConfig::default()
-    };
-    let trim = trim_level_flight(&config.params, 25.0, 100.0, 0.0)
-        .map_err(|e| format!("cannot trim the airplane: {e:?}"))?;
-    let plant = Plant::with_config(config, trim.initial, seed);
-    let c = trim.commands;
-    let pilot = SteadyPilot(Sticks {
-        aileron: c.aileron,
-        elevator: c.elevator,
-        throttle: c.throttle,
-        rudder: c.rudder,
-        brake: 0.0,
-        auto: false,
-    });
-    Ok(SimWorld::new(plant, Box::new(pilot)))
+fn merge(a: DeviceFaults, b: DeviceFaults) -> DeviceFaults {
+    let or3 = |x: [bool; 3], y: [bool; 3]| [x[0] || y[0], x[1] || y[1], x[2] || y[2]];
+    DeviceFaults {
+        silent: or3(a.silent, b.silent),
+        garbage: or3(a.garbage, b.garbage),
+        gps_loss: a.gps_loss || b.gps_loss,
+        servo_vanished: a.servo_vanished || b.servo_vanished,
+    }
 }

@@ -13,6 +13,8 @@ use crate::vehicle::VehicleConfig;
 use clap::{Args, Parser, Subcommand};
 use skyframe_core::executive::{FaultPlan, OverrunInjection};
 use skyframe_core::schedule::{FrameTable, SHIPPED};
+use skyframe_sim::scenario::{FaultKind, Scenario};
+use skyframe_sim::world::SimWorld;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::Arc;
@@ -118,12 +120,17 @@ pub struct FlightArgs {
 
 #[derive(Args, Debug)]
 pub struct SimArgs {
+    /// The scenario to fly (initial state, wind, pilot timeline, faults). Default: the
+    /// take-off, circuit, aerobatics and landing of scenarios/takeoff-circuit.toml.
+    #[arg(long, value_name = "FILE")]
+    pub scenario: Option<PathBuf>,
     /// Virtual time: as fast as the machine allows, deterministic for a seed.
     #[arg(long)]
     pub fast: bool,
-    /// Seed of every random process of the simulation (noise, gusts, GPS jitter).
-    #[arg(long, default_value_t = 1)]
-    pub seed: u64,
+    /// Seed of every random process of the simulation (noise, gusts, GPS jitter); default:
+    /// the scenario's.
+    #[arg(long)]
+    pub seed: Option<u64>,
     #[command(flatten)]
     pub flight: FlightArgs,
 }
@@ -316,9 +323,17 @@ fn run<P: Platform>(platform: &P, command: Command) -> Result<ExitCode, String> 
             Ok(ExitCode::SUCCESS)
         }
         Command::Sim(args) => {
-            let world = skyframe_sim::world::cruise_world(args.seed)?;
+            let scenario = match &args.scenario {
+                Some(path) => Scenario::load(path),
+                None => Scenario::parse(DEFAULT_SCENARIO),
+            }
+            .map_err(|e| e.to_string())?;
+            let world = SimWorld::from_scenario(&scenario, args.seed);
             let mut flight = args.flight;
-            flight.duration = flight.duration.or(Some(60.0));
+            flight.duration = flight.duration.or(Some(scenario.duration_s));
+            flight
+                .inject_overrun
+                .extend(scenario_overruns(&scenario, SHIPPED.minor_frame_ns));
             let log = crate::vehicle::LogConfig::default();
             let devices = Devices::Sim(Box::new(world));
             if args.fast {
@@ -345,6 +360,27 @@ fn run<P: Platform>(platform: &P, command: Command) -> Result<ExitCode, String> 
             )
         }
     }
+}
+
+/// The shipped default scenario, compiled in so `skyframe sim` flies from any directory.
+const DEFAULT_SCENARIO: &str = include_str!("../../scenarios/takeoff-circuit.toml");
+
+/// A scenario's task overruns as the executive's injections (frames of `minor_frame_ns`).
+fn scenario_overruns(scenario: &Scenario, minor_frame_ns: u64) -> Vec<Injection> {
+    let frame = |t_s: f64| (t_s * 1e9 / minor_frame_ns as f64).round().max(0.0) as u64;
+    scenario
+        .faults
+        .iter()
+        .filter(|f| f.kind == FaultKind::TaskOverrun)
+        .filter_map(|f| {
+            Some(Injection {
+                task: f.task.clone()?,
+                extra_us: f.extra_us?,
+                from_frame: frame(f.t_s),
+                to_frame: frame(f.t_s + f.duration_s).max(frame(f.t_s) + 1),
+            })
+        })
+        .collect()
 }
 
 /// Flies with `devices`, prints the report; the flight's own failures are exit 1.
