@@ -6,7 +6,8 @@
 //! - [`schedule`]: the frame table, built at compile time from `schedule.toml`;
 //! - [`executive`]: steps the tasks frame by frame, measures them, applies overrun policies,
 //!   keeps health and emits one timing record per frame;
-//! - [`comm`]: the lock-free ways tasks hand data to each other and to the shell.
+//! - [`comm`]: the lock-free ways tasks hand data to each other and to the shell;
+//! - [`horizon`]: roll and pitch from a camera frame (edges, Hough, sky/ground validation).
 //!
 //! The OS side (threads, files, sockets, timers) lives in `skyframe-shell` and the
 //! `platform-*` crates, behind the traits in [`executive::clock`] and [`comm`].
@@ -19,5 +20,6 @@ extern crate std;
 pub mod facade;
 pub mod comm;
 pub mod executive;
+pub mod horizon;
 pub mod schedule;
 pub mod tasks;
