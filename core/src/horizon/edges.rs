@@ -46,7 +46,11 @@ const MAX_SCALE: usize = 16;
 
 impl Working {
     pub fn for_frame(width: usize, height: usize) -> Self {
-        let scale = width.div_ceil(MAX_WORKING_WIDTH).clamp(1, MAX_SCALE);
+        Self::with_scale(width, height, width.div_ceil(MAX_WORKING_WIDTH))
+    }
+
+    pub fn with_scale(width: usize, height: usize, scale: usize) -> Self {
+        let scale = scale.clamp(1, MAX_SCALE);
         Working {
             scale,
             width: width / scale,
@@ -166,45 +170,65 @@ fn gradient_at(grey: &[u8], geo: Working, x: usize, y: usize) -> (i32, i32) {
 /// clean step of 10 grey levels gives 40).
 pub(crate) const HISTOGRAM_SHIFT: u32 = 3;
 
-/// Picks the gradient threshold of this frame: the magnitude above which about
-/// `target_points` pixels lie, estimated on every other row, never below `floor`.
-///
-/// A fixed threshold fails both ways on the seed's video: exposure changes make the horizon's
-/// contrast vary tenfold, and noisy frames pass a low threshold "as all-edge".
-pub(crate) fn adaptive_threshold(
-    grey: &[u8],
-    geo: Working,
-    scratch: &mut [u16],
-    target_points: usize,
-    floor: u16,
-) -> u16 {
-    let mut histogram = [0u32; 256];
-    let mut sampled = 0u32;
-    let row = scratch.get_mut(..geo.width).unwrap_or(&mut []);
-    for y in (1..geo.height.saturating_sub(1)).step_by(2) {
-        magnitude_row(grey, geo, y, row);
-        for &m in row.iter() {
-            let bin = ((m >> HISTOGRAM_SHIFT) as usize).min(255);
-            if let Some(h) = histogram.get_mut(bin) {
-                *h += 1;
+/// Histogram of the gradient magnitude over every other row of the working image.
+pub(crate) struct GradientHistogram {
+    bins: [u32; 256],
+    sampled: u32,
+}
+
+impl GradientHistogram {
+    pub fn measure(grey: &[u8], geo: Working, scratch: &mut [u16]) -> Self {
+        let mut bins = [0u32; 256];
+        let mut sampled = 0u32;
+        let row = scratch.get_mut(..geo.width).unwrap_or(&mut []);
+        for y in (1..geo.height.saturating_sub(1)).step_by(2) {
+            magnitude_row(grey, geo, y, row);
+            // Border columns have no gradient; leave them out of the statistics.
+            for &m in row.iter().skip(1).take(geo.width.saturating_sub(2)) {
+                let bin = ((m >> HISTOGRAM_SHIFT) as usize).min(255);
+                if let Some(h) = bins.get_mut(bin) {
+                    *h += 1;
+                }
+                sampled += 1;
             }
         }
-        sampled += row.len() as u32;
+        GradientHistogram { bins, sampled }
     }
-    let pixels = (geo.width * geo.height).max(1) as u64;
-    // Pixels allowed above the threshold among those sampled.
-    let allowed = (target_points as u64 * sampled as u64 / pixels) as u32;
-    let mut above = 0u32;
-    let mut threshold_bin = 256usize;
-    for (bin, &count) in histogram.iter().enumerate().rev() {
-        if above + count > allowed {
-            break;
+
+    /// The gradient threshold of this frame: the magnitude above which about
+    /// `target_points` pixels of the working image lie, never below `floor`.
+    ///
+    /// A fixed threshold fails both ways on the seed's video: exposure changes make the
+    /// horizon's contrast vary tenfold, and noisy frames pass a low threshold "as all-edge".
+    pub fn threshold(&self, geo: Working, target_points: usize, floor: u16) -> u16 {
+        let pixels = (geo.width * geo.height).max(1) as u64;
+        // Pixels allowed above the threshold among those sampled.
+        let allowed = (target_points as u64 * self.sampled as u64 / pixels) as u32;
+        let mut above = 0u32;
+        let mut threshold_bin = 256usize;
+        for (bin, &count) in self.bins.iter().enumerate().rev() {
+            if above + count > allowed {
+                break;
+            }
+            above += count;
+            threshold_bin = bin;
         }
-        above += count;
-        threshold_bin = bin;
+        let threshold = (threshold_bin.min(255) << HISTOGRAM_SHIFT) as u16;
+        threshold.max(floor)
     }
-    let threshold = (threshold_bin.min(255) << HISTOGRAM_SHIFT) as u16;
-    threshold.max(floor)
+
+    /// The magnitude below which a share `p` of the sampled pixels lie.
+    pub fn percentile(&self, p: f32) -> u16 {
+        let wanted = (p * self.sampled as f32) as u32;
+        let mut below = 0u32;
+        for (bin, &count) in self.bins.iter().enumerate() {
+            below += count;
+            if below > wanted {
+                return (bin << HISTOGRAM_SHIFT) as u16;
+            }
+        }
+        (255 << HISTOGRAM_SHIFT) as u16
+    }
 }
 
 /// What [`collect_edges`] found.

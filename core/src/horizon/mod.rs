@@ -168,6 +168,9 @@ pub struct DetectorConfig {
     /// A jump out of the gate is taken only if its score beats the best continuation by this
     /// factor.
     pub jump_factor: f32,
+    /// Noise level (30th percentile of the Sobel magnitude `|gx| + |gy|`) that each further
+    /// 2× binning of a noisy frame is worth.
+    pub noise_per_binning: u16,
     /// Frames without a continuation after which the track is dropped and every candidate
     /// competes on its own score.
     pub lost_after_frames: u8,
@@ -176,13 +179,14 @@ pub struct DetectorConfig {
 impl Default for DetectorConfig {
     fn default() -> Self {
         DetectorConfig {
-            vote_window_deg: 4,
+            vote_window_deg: 6,
             candidates: 10,
             min_gradient: 40,
             edge_pixels_per_perimeter_pixel: 6,
             gate_roll_deg: 10.0,
             gate_offset: 0.08,
             jump_factor: 1.5,
+            noise_per_binning: 32,
             lost_after_frames: 5,
         }
     }
@@ -230,7 +234,13 @@ pub struct HorizonDetector {
     track: Option<Track>,
     outcome: Outcome,
     edge_count: usize,
+    working_scale: usize,
 }
+
+/// Share of the quietest gradients that measures a frame's noise.
+const NOISE_PERCENTILE: f32 = 0.3;
+/// Narrowest working image noise binning may go to.
+const MIN_WORKING_WIDTH: usize = 80;
 
 /// Fewest edge points worth running the Hough stage on.
 const MIN_EDGES: usize = 16;
@@ -250,6 +260,7 @@ impl HorizonDetector {
             track: None,
             outcome: Outcome::NoEdges,
             edge_count: 0,
+            working_scale: 1,
         }
     }
 
@@ -269,6 +280,11 @@ impl HorizonDetector {
     /// Edge points the last call used.
     pub fn last_edge_count(&self) -> usize {
         self.edge_count
+    }
+
+    /// Binning factor of the last frame's working image (1 = full resolution).
+    pub fn last_working_scale(&self) -> usize {
+        self.working_scale
     }
 
     /// Forgets the tracked horizon (e.g. after a cut in the video).
@@ -310,20 +326,35 @@ impl HorizonDetector {
         if !ws.fits(&sizes) {
             return Err(Outcome::WorkspaceTooSmall);
         }
-        let geo = Working::for_frame(width, height);
+        // 1: working image; binned further when the frame is noisy. Binning by k divides the
+        // noise by k and keeps a long straight edge's contrast (the seed's noisy frames
+        // passed the filter "as all-edge"). The noise is read off the quiet part of the
+        // gradient distribution: in a clean frame the sky's 30th percentile is nearly flat.
+        let base = Working::for_frame(width, height);
+        edges::build_working_image(frame, base, ws.grey, ws.rows);
+        let mut histogram = edges::GradientHistogram::measure(ws.grey, base, ws.rows);
+        let noise = histogram.percentile(NOISE_PERCENTILE);
+        let extra = usize::from(noise.div_ceil(self.config.noise_per_binning.max(1))).clamp(1, 4);
+        let mut geo = base;
+        if extra > 1 {
+            let coarser = Working::with_scale(width, height, base.scale * extra);
+            if coarser.width >= MIN_WORKING_WIDTH && coarser.height >= MIN_WORKING_WIDTH / 2 {
+                geo = coarser;
+                edges::build_working_image(frame, geo, ws.grey, ws.rows);
+                histogram = edges::GradientHistogram::measure(ws.grey, geo, ws.rows);
+            }
+        }
+        self.working_scale = geo.scale;
         let mean_focal = 0.5 * (camera.fx + camera.fy);
         let rho = RhoAxis {
             step: geo.scale as f32 / mean_focal,
             half: rho_half_bins(geo),
         };
 
-        // 1–3: working image, gradient, thinned and undistorted edge points.
-        edges::build_working_image(frame, geo, ws.grey, ws.rows);
+        // 2–3: gradient, thinned and undistorted edge points.
         let perimeter = geo.width + geo.height;
-        let threshold = edges::adaptive_threshold(
-            ws.grey,
+        let threshold = histogram.threshold(
             geo,
-            ws.rows,
             usize::from(self.config.edge_pixels_per_perimeter_pixel) * perimeter,
             self.config.min_gradient,
         );
@@ -376,6 +407,29 @@ impl HorizonDetector {
                 }
             }
         }
+        #[cfg(test)]
+        {
+            let l = HorizonLine::from_attitude(-33.59f32.to_radians(), -2.71f32.to_radians());
+            let (s, c) = (libm::sinf(l.camera_roll_rad), libm::cosf(l.camera_roll_rad));
+            for e in edge_points {
+                let d = (s * e.x + c * e.y - l.offset) * mean_focal;
+                if d.abs() < 2.0 {
+                    std::println!(
+                        "edge {:.3} {:.3} d {d:.2} angle {:.1} (line normal {:.1})",
+                        e.x,
+                        e.y,
+                        e.normal_angle.to_degrees(),
+                        l.camera_roll_rad.to_degrees()
+                    );
+                }
+            }
+        }
+        #[cfg(test)]
+        std::println!(
+            "threshold {threshold} edges {} max {:?} count {count}",
+            edge_points.len(),
+            ws.accumulator.iter().max()
+        );
         if count == 0 {
             return Err(Outcome::NoCandidate);
         }
@@ -385,19 +439,27 @@ impl HorizonDetector {
         let samples = ws.samples.get(..sample_count).unwrap_or(&[]);
         let max_radius2 = undistorted_corner_radius2(&camera, width, height);
         let bands = [3.0 * rho.step, 2.0 * rho.step, 1.5 * rho.step];
-        let max_angle_difference = 12.0 * PI / 180.0;
+        // Wide: aliased edges (a staircase) have Sobel directions 20° and more off the line; the
+        // distance band does the selecting.
+        let max_angle_difference = 30.0 * PI / 180.0;
         let mut scored: [Option<Scored>; MAX_CANDIDATES] = [None; MAX_CANDIDATES];
         for (peak, slot) in peaks.iter().take(count).zip(scored.iter_mut()) {
             let start = Line {
                 angle: peak.angle as f32 * hough::ANGLE_STEP,
                 rho: rho.value(peak.rho),
             };
-            let Some((line, inliers)) =
-                hough::refine(edge_points, start, &bands, max_angle_difference)
-            else {
+            let refined = hough::refine(edge_points, start, &bands, max_angle_difference);
+            #[cfg(test)]
+            std::println!("peak {peak:?} start {start:?} refined {refined:?}");
+            let Some((line, inliers)) = refined else {
                 continue;
             };
             let expected = expected_edge_pixels(&camera, geo, line, rho, max_radius2);
+            #[cfg(test)]
+            std::println!(
+                "  expected {expected} sep {:?}",
+                hough::separation(samples, line, 2.0 * rho.step)
+            );
             if expected < 4.0 {
                 continue;
             }

@@ -258,3 +258,15 @@ fn tracking_follows_a_moving_horizon() {
         );
     }
 }
+
+#[test]
+#[ignore]
+fn debug_raw_frame() {
+    let grey = std::fs::read("/tmp/f1.raw").expect("raw");
+    let camera = camera_320();
+    let frame = Frame::grey(320, 240, &grey).expect("fits");
+    let mut buffers = Buffers::new(320, 240);
+    let mut detector = HorizonDetector::new(camera);
+    let h = detector.detect(&frame, &mut buffers.workspace());
+    std::println!("{h:?} {:?}", detector.last_outcome());
+}
