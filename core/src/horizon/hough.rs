@@ -132,6 +132,10 @@ pub(crate) fn find_peaks(
     let mut count = 0usize;
     let cell = |a: usize, r: usize| -> u16 { accumulator.get(a * bins + r).copied().unwrap_or(0) };
     for (a, row) in accumulator.chunks_exact(bins).enumerate() {
+        // Most angle rows hold nothing near the threshold: one vectorised max skips them.
+        if row.iter().copied().max().unwrap_or(0) < threshold {
+            continue;
+        }
         for (r, &v) in row.iter().enumerate() {
             if v < threshold {
                 continue;

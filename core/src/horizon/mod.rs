@@ -116,7 +116,7 @@ pub struct Workspace<'a> {
 
 /// Edge points kept per working pixel of perimeter: the horizon crosses the frame once, so a
 /// few times the perimeter holds it with room for clutter.
-const EDGES_PER_PERIMETER_PIXEL: usize = 8;
+const EDGES_PER_PERIMETER_PIXEL: usize = 16;
 
 impl Workspace<'_> {
     /// Sizes for frames `width` × `height`.
@@ -142,11 +142,11 @@ impl Workspace<'_> {
 }
 
 /// Rho bins either side of zero, one working pixel each: the lines through the undistorted
-/// frame reach at most the half-diagonal, doubled to leave room for principal points off
+/// frame reach at most the half-diagonal; 1.5 times that leaves room for principal points off
 /// centre and barrel distortion (undistorted corners move outwards).
 fn rho_half_bins(geo: Working) -> usize {
     let diagonal = libm::sqrt((geo.width * geo.width + geo.height * geo.height) as f64);
-    libm::ceil(diagonal) as usize
+    libm::ceil(0.75 * diagonal) as usize
 }
 
 /// Tuning of the detector. `Default` is what the accuracy tests were run with.
@@ -180,9 +180,9 @@ impl Default for DetectorConfig {
     fn default() -> Self {
         DetectorConfig {
             vote_window_deg: 6,
-            candidates: 10,
+            candidates: 8,
             min_gradient: 40,
-            edge_pixels_per_perimeter_pixel: 6,
+            edge_pixels_per_perimeter_pixel: 10,
             gate_roll_deg: 10.0,
             gate_offset: 0.08,
             jump_factor: 1.5,
@@ -438,7 +438,7 @@ impl HorizonDetector {
         let sample_count = edges::collect_samples(frame, ws.grey, geo, &camera, ws.samples);
         let samples = ws.samples.get(..sample_count).unwrap_or(&[]);
         let max_radius2 = undistorted_corner_radius2(&camera, width, height);
-        let bands = [3.0 * rho.step, 2.0 * rho.step, 1.5 * rho.step];
+        let bands = [3.0 * rho.step, 1.5 * rho.step];
         // Wide: aliased edges (a staircase) have Sobel directions 20° and more off the line; the
         // distance band does the selecting.
         let max_angle_difference = 30.0 * PI / 180.0;
@@ -631,7 +631,8 @@ fn expected_edge_pixels(
     );
     let half = rho.half as i32;
     let mut inside = 0u32;
-    for k in -half..=half {
+    // Every other rho step is precise enough for a share of the length.
+    for k in (-half..=half).step_by(2) {
         let t = k as f32 * rho.step;
         let (x, y) = (ox + t * dx, oy + t * dy);
         if x * x + y * y > max_radius2 {
@@ -644,5 +645,5 @@ fn expected_edge_pixels(
     }
     let (px, py) = (libm::fabsf(dx) * camera.fx, libm::fabsf(dy) * camera.fy);
     let mean_focal = 0.5 * (camera.fx + camera.fy);
-    inside as f32 * px.max(py) / mean_focal
+    2.0 * inside as f32 * px.max(py) / mean_focal
 }
