@@ -40,7 +40,7 @@ pub(crate) struct Working {
 
 /// Widest working image; wider frames are binned (a 320-pixel horizon already gives
 /// sub-degree roll after the least-squares refinement).
-pub const MAX_WORKING_WIDTH: usize = 400;
+pub const MAX_WORKING_WIDTH: usize = 200;
 /// The binning sums at most 16×16 pixels so that a 255-valued block fits a `u16`.
 const MAX_SCALE: usize = 16;
 
@@ -66,14 +66,8 @@ impl Working {
     }
 }
 
-/// Fills `grey` with the working image (luma, binned by `geo.scale`); `row_sum` is scratch of
-/// at least `geo.width`.
-pub(crate) fn build_working_image(
-    frame: &Frame<'_>,
-    geo: Working,
-    grey: &mut [u8],
-    row_sum: &mut [u16],
-) {
+/// Fills `grey` with the working image (luma, binned by `geo.scale`).
+pub(crate) fn build_working_image(frame: &Frame<'_>, geo: Working, grey: &mut [u8]) {
     let s = geo.scale;
     let colour = frame.is_colour();
     for (wy, out_row) in grey
@@ -96,29 +90,69 @@ pub(crate) fn build_working_image(
             }
             continue;
         }
-        let sums = row_sum.get_mut(..geo.width).unwrap_or(&mut []);
-        sums.fill(0);
-        for dy in 0..s {
-            let row = frame.row(wy * s + dy);
-            if colour {
-                for (sum, block) in sums.iter_mut().zip(row.chunks_exact(3 * s)) {
+        if s == 2 {
+            // The common case (640-wide frames), unrolled: per-block loops cost more than
+            // the arithmetic.
+            bin_two_rows(frame.row(wy * 2), frame.row(wy * 2 + 1), colour, out_row);
+            continue;
+        }
+        // The block's rows, then channel sums per block and one luma per block.
+        let rows: [&[u8]; MAX_SCALE] =
+            core::array::from_fn(|dy| if dy < s { frame.row(wy * s + dy) } else { &[] });
+        let area = (s * s) as u32;
+        let bytes_per_block = if colour { 3 * s } else { s };
+        for (wx, o) in out_row.iter_mut().enumerate() {
+            let span = wx * bytes_per_block..(wx + 1) * bytes_per_block;
+            let (mut r, mut g, mut b) = (0u32, 0u32, 0u32);
+            for row in rows.iter().take(s) {
+                let block = row.get(span.clone()).unwrap_or(&[]);
+                if colour {
                     for px in block.chunks_exact(3) {
-                        if let &[r, g, b] = px {
-                            *sum = sum.saturating_add(luma(r, g, b) as u16);
+                        if let &[pr, pg, pb] = px {
+                            r += u32::from(pr);
+                            g += u32::from(pg);
+                            b += u32::from(pb);
                         }
                     }
-                }
-            } else {
-                for (sum, block) in sums.iter_mut().zip(row.chunks_exact(s)) {
-                    *sum = block
-                        .iter()
-                        .fold(*sum, |acc, &p| acc.saturating_add(p as u16));
+                } else {
+                    r += block.iter().map(|&p| u32::from(p)).sum::<u32>();
                 }
             }
+            *o = if colour {
+                let weighted = 77 * r + 150 * g + 29 * b;
+                ((weighted + 128 * area) / (256 * area)) as u8
+            } else {
+                ((r + area / 2) / area) as u8
+            };
         }
-        let area = (s * s) as u32;
-        for (o, &sum) in out_row.iter_mut().zip(sums.iter()) {
-            *o = ((sum as u32 + area / 2) / area) as u8;
+    }
+}
+
+/// Luma of 2×2 blocks of two frame rows.
+fn bin_two_rows(top: &[u8], bottom: &[u8], colour: bool, out: &mut [u8]) {
+    if colour {
+        for ((o, a), b) in out
+            .iter_mut()
+            .zip(top.chunks_exact(6))
+            .zip(bottom.chunks_exact(6))
+        {
+            if let (&[ar, ag, ab, cr, cg, cb], &[br, bg, bb, dr, dg, db]) = (a, b) {
+                let r = u32::from(ar) + u32::from(cr) + u32::from(br) + u32::from(dr);
+                let g = u32::from(ag) + u32::from(cg) + u32::from(bg) + u32::from(dg);
+                let b = u32::from(ab) + u32::from(cb) + u32::from(bb) + u32::from(db);
+                *o = ((77 * r + 150 * g + 29 * b + 512) >> 10) as u8;
+            }
+        }
+    } else {
+        for ((o, a), b) in out
+            .iter_mut()
+            .zip(top.chunks_exact(2))
+            .zip(bottom.chunks_exact(2))
+        {
+            if let (&[a0, a1], &[b0, b1]) = (a, b) {
+                let sum = u32::from(a0) + u32::from(a1) + u32::from(b0) + u32::from(b1);
+                *o = ((sum + 2) >> 2) as u8;
+            }
         }
     }
 }

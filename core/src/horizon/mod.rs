@@ -331,7 +331,7 @@ impl HorizonDetector {
         // passed the filter "as all-edge"). The noise is read off the quiet part of the
         // gradient distribution: in a clean frame the sky's 30th percentile is nearly flat.
         let base = Working::for_frame(width, height);
-        edges::build_working_image(frame, base, ws.grey, ws.rows);
+        edges::build_working_image(frame, base, ws.grey);
         let mut histogram = edges::GradientHistogram::measure(ws.grey, base, ws.rows);
         let noise = histogram.percentile(NOISE_PERCENTILE);
         let extra = usize::from(noise.div_ceil(self.config.noise_per_binning.max(1))).clamp(1, 4);
@@ -340,7 +340,7 @@ impl HorizonDetector {
             let coarser = Working::with_scale(width, height, base.scale * extra);
             if coarser.width >= MIN_WORKING_WIDTH && coarser.height >= MIN_WORKING_WIDTH / 2 {
                 geo = coarser;
-                edges::build_working_image(frame, geo, ws.grey, ws.rows);
+                edges::build_working_image(frame, geo, ws.grey);
                 histogram = edges::GradientHistogram::measure(ws.grey, geo, ws.rows);
             }
         }
@@ -407,29 +407,6 @@ impl HorizonDetector {
                 }
             }
         }
-        #[cfg(test)]
-        {
-            let l = HorizonLine::from_attitude(-33.59f32.to_radians(), -2.71f32.to_radians());
-            let (s, c) = (libm::sinf(l.camera_roll_rad), libm::cosf(l.camera_roll_rad));
-            for e in edge_points {
-                let d = (s * e.x + c * e.y - l.offset) * mean_focal;
-                if d.abs() < 2.0 {
-                    std::println!(
-                        "edge {:.3} {:.3} d {d:.2} angle {:.1} (line normal {:.1})",
-                        e.x,
-                        e.y,
-                        e.normal_angle.to_degrees(),
-                        l.camera_roll_rad.to_degrees()
-                    );
-                }
-            }
-        }
-        #[cfg(test)]
-        std::println!(
-            "threshold {threshold} edges {} max {:?} count {count}",
-            edge_points.len(),
-            ws.accumulator.iter().max()
-        );
         if count == 0 {
             return Err(Outcome::NoCandidate);
         }
@@ -449,17 +426,10 @@ impl HorizonDetector {
                 rho: rho.value(peak.rho),
             };
             let refined = hough::refine(edge_points, start, &bands, max_angle_difference);
-            #[cfg(test)]
-            std::println!("peak {peak:?} start {start:?} refined {refined:?}");
             let Some((line, inliers)) = refined else {
                 continue;
             };
             let expected = expected_edge_pixels(&camera, geo, line, rho, max_radius2);
-            #[cfg(test)]
-            std::println!(
-                "  expected {expected} sep {:?}",
-                hough::separation(samples, line, 2.0 * rho.step)
-            );
             if expected < 4.0 {
                 continue;
             }

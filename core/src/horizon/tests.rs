@@ -206,7 +206,7 @@ fn small_workspace_is_refused_not_overrun() {
     let camera = camera_320();
     let grey = to_grey(&render(&camera, 0.0, 0.0, SKY, GROUND));
     let frame = Frame::grey(320, 240, &grey).expect("fits");
-    let mut buffers = Buffers::new(160, 120);
+    let mut buffers = Buffers::new(64, 48);
     let mut detector = HorizonDetector::new(camera);
     assert!(detector.detect(&frame, &mut buffers.workspace()).is_none());
     assert_eq!(detector.last_outcome(), Outcome::WorkspaceTooSmall);
@@ -257,16 +257,4 @@ fn tracking_follows_a_moving_horizon() {
             0.5,
         );
     }
-}
-
-#[test]
-#[ignore]
-fn debug_raw_frame() {
-    let grey = std::fs::read("/tmp/f1.raw").expect("raw");
-    let camera = camera_320();
-    let frame = Frame::grey(320, 240, &grey).expect("fits");
-    let mut buffers = Buffers::new(320, 240);
-    let mut detector = HorizonDetector::new(camera);
-    let h = detector.detect(&frame, &mut buffers.workspace());
-    std::println!("{h:?} {:?}", detector.last_outcome());
 }
