@@ -334,6 +334,9 @@ impl Moments {
     }
 }
 
+/// Luma at and above which a sample counts as clipped.
+const SATURATED: f32 = 248.0;
+
 /// Splits the samples by the line (leaving out a band `band` wide around it, where pixels mix
 /// both sides) and measures how well the two sides separate.
 pub(crate) fn separation(samples: &[Sample], line: Line, band: f32) -> Separation {
@@ -341,6 +344,11 @@ pub(crate) fn separation(samples: &[Sample], line: Line, band: f32) -> Separatio
     let mut bright = Moments::default();
     let mut dark = Moments::default();
     for s in samples {
+        // Clipped pixels (glare, over-exposure) say nothing about sky or ground, and a
+        // saturated blob would otherwise dominate the variance.
+        if s.luma >= SATURATED {
+            continue;
+        }
         let d = s.x * nx + s.y * ny - line.rho;
         if d > band {
             bright.add(s);
