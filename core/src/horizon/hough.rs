@@ -186,6 +186,9 @@ pub(crate) fn find_peaks(
 /// Inserts into a list sorted by votes (descending), dropping the weakest when full.
 pub(crate) fn insert_peak(out: &mut [Peak], count: &mut usize, peak: Peak) {
     let capacity = out.len();
+    if capacity == 0 {
+        return;
+    }
     let mut position = *count;
     while position > 0 && out.get(position - 1).is_some_and(|p| p.votes < peak.votes) {
         position -= 1;
@@ -214,10 +217,11 @@ pub(crate) fn peak_near(
 ) -> Option<Peak> {
     let bins = rho.bins();
     let mut best: Option<Peak> = None;
+    let angle_window = angle_window.min(ANGLE_BINS / 4);
     for k in 0..=2 * angle_window {
-        let a = (angle + ANGLE_BINS + k - angle_window) % ANGLE_BINS;
+        let a = (angle % ANGLE_BINS + ANGLE_BINS + k - angle_window) % ANGLE_BINS;
         let lo = rho_index.saturating_sub(rho_window);
-        let hi = (rho_index + rho_window).min(bins - 1);
+        let hi = rho_index.saturating_add(rho_window).min(bins - 1);
         let Some(row) = accumulator.get(a * bins + lo..=a * bins + hi) else {
             continue;
         };

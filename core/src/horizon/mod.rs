@@ -389,8 +389,11 @@ impl HorizonDetector {
                 let Some(rho_index) = rho.index(rho_value) else {
                     continue;
                 };
-                let angle_window = libm::ceilf(self.config.gate_roll_deg) as usize;
-                let rho_window = libm::ceilf(self.config.gate_offset / rho.step) as usize;
+                // Clamped so that a wild configuration cannot wrap the search around.
+                let angle_window =
+                    (libm::ceilf(self.config.gate_roll_deg) as usize).min(ANGLE_BINS / 4);
+                let rho_window =
+                    (libm::ceilf(self.config.gate_offset / rho.step) as usize).min(rho.bins());
                 if let Some(p) = hough::peak_near(
                     ws.accumulator,
                     rho,

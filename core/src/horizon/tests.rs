@@ -258,3 +258,60 @@ fn tracking_follows_a_moving_horizon() {
         );
     }
 }
+
+mod never_panics {
+    use super::*;
+    use proptest::prelude::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(48))]
+
+        /// Any pixels, any size in range, odd cameras and tunings: an answer in range or
+        /// `None`, never a panic (the detector runs inside the flight executive).
+        #[test]
+        fn random_frames(
+            width in 16usize..420,
+            height in 16usize..260,
+            colour in any::<bool>(),
+            seed in any::<u64>(),
+            k1 in -0.5f32..0.5,
+            fov_deg in 20.0f32..120.0,
+            gate_roll_deg in 0.0f32..1000.0,
+            window in 0u8..255,
+        ) {
+            let channels = if colour { 3 } else { 1 };
+            let mut state = seed | 1;
+            let pixels: Vec<u8> = (0..width * height * channels)
+                .map(|i| {
+                    state ^= state << 13;
+                    state ^= state >> 7;
+                    state ^= state << 17;
+                    // Half noise, half a ramp, so that some frames have lines.
+                    if (state & 1) == 0 { (state >> 8) as u8 } else { (i % 251) as u8 }
+                })
+                .collect();
+            let frame = if colour {
+                Frame::rgb(width, height, &pixels)
+            } else {
+                Frame::grey(width, height, &pixels)
+            }
+            .expect("sized to fit");
+            let mut camera = Camera::ideal(width as u32, height as u32, fov_deg * DEG);
+            camera.k1 = k1;
+            let config = DetectorConfig {
+                gate_roll_deg,
+                vote_window_deg: window,
+                ..DetectorConfig::default()
+            };
+            let mut detector = HorizonDetector::with_config(camera, config);
+            let mut buffers = Buffers::new(width, height);
+            for _ in 0..2 {
+                if let Some(h) = detector.detect(&frame, &mut buffers.workspace()) {
+                    prop_assert!((0.0..=1.0).contains(&h.confidence));
+                    prop_assert!(h.roll_rad.abs() <= PI + 1e-4);
+                    prop_assert!(h.pitch_rad.is_finite());
+                }
+            }
+        }
+    }
+}
