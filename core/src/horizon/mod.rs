@@ -186,7 +186,7 @@ impl Default for DetectorConfig {
             gate_roll_deg: 10.0,
             gate_offset: 0.08,
             jump_factor: 1.5,
-            noise_per_binning: 32,
+            noise_per_binning: 24,
             lost_after_frames: 5,
         }
     }
