@@ -26,6 +26,9 @@ pub struct Accuracy {
     pub wrong_confident: usize,
     /// Frames more than 5° wrong, any confidence.
     pub wrong: usize,
+    /// Share of all frames answered with confidence above 0.5 (`None` for a detector
+    /// without a confidence).
+    pub confident: Option<f32>,
 }
 
 /// Above this a confident answer counts as a lie (the accuracy tests assert none).
@@ -56,10 +59,15 @@ pub fn evaluate(answers: &[Answer], truths: &[Truth]) -> Accuracy {
     let mut pitch_errors = Vec::new();
     let mut within = 0;
     let (mut wrong, mut wrong_confident) = (0, 0);
+    let mut confident = 0;
+    let has_confidence = answers.iter().any(|a| a.confidence.is_some());
     for (a, t) in answers.iter().zip(truths) {
         let Some((roll, pitch)) = a.attitude else {
             continue;
         };
+        if a.confidence.is_some_and(|c| c > CONFIDENT) {
+            confident += 1;
+        }
         let re = roll_error_deg(roll, t.roll_deg);
         let pe = (pitch - t.pitch_deg).abs();
         roll_errors.push(re);
@@ -91,5 +99,6 @@ pub fn evaluate(answers: &[Answer], truths: &[Truth]) -> Accuracy {
         },
         wrong_confident,
         wrong,
+        confident: (has_confidence && frames > 0).then(|| confident as f32 / frames as f32),
     }
 }

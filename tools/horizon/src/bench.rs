@@ -374,7 +374,7 @@ fn bench_in(
 
 fn print_tables(report: &Report) {
     println!(
-        "{:<20} {:>8} | {:>7} {:>6} {:>6} {:>6} {:>6} {:>5} | {:>7} {:>6} {:>6} {:>6} {:>6}",
+        "{:<20} {:>8} | {:>7} {:>6} {:>6} {:>6} {:>6} {:>5} {:>5} | {:>7} {:>6} {:>6} {:>6} {:>6}",
         "set",
         "size",
         "within2",
@@ -382,6 +382,7 @@ fn print_tables(report: &Report) {
         "r_p95",
         "p_med",
         "p_p95",
+        "conf",
         "lies",
         "cv_w2",
         "r_med",
@@ -392,7 +393,7 @@ fn print_tables(report: &Report) {
     for s in &report.accuracy {
         let a = &s.ours.accuracy;
         print!(
-            "{:<20} {:>8} | {:>7.2} {:>6.2} {:>6.2} {:>6.2} {:>6.2} {:>5} |",
+            "{:<20} {:>8} | {:>7.2} {:>6.2} {:>6.2} {:>6.2} {:>6.2} {:>5.2} {:>5} |",
             s.set,
             s.size,
             a.within_2deg,
@@ -400,6 +401,7 @@ fn print_tables(report: &Report) {
             a.roll_p95_deg,
             a.pitch_median_deg,
             a.pitch_p95_deg,
+            a.confident.unwrap_or(0.0),
             a.wrong_confident
         );
         match &s.opencv {
@@ -417,6 +419,11 @@ fn print_tables(report: &Report) {
             None => println!(),
         }
     }
+    println!(
+        "within2: share of frames with roll and pitch within 2°; r/p med, p95: errors (°) over \
+         the frames answered; conf: share answered with confidence > 0.5; lies: frames > 5° \
+         wrong with confidence > 0.5; cv_*: the OpenCV pipeline"
+    );
     for s in &report.speed {
         match (s.opencv_ms_mean, s.opencv_ms_median, s.speedup_median) {
             (Some(cv), Some(cv_median), Some(x)) => println!(

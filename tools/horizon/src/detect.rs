@@ -104,7 +104,8 @@ pub fn csv_line(frame: usize, result: &FrameResult) -> String {
 
 /// Where frames come from.
 pub enum Source {
-    Y4m(PathBuf),
+    /// An open stream: its header has been read and checked.
+    Y4m(image_io::Y4mReader<Box<dyn std::io::BufRead>>),
     Directory(Vec<PathBuf>),
     Image(PathBuf),
 }
@@ -113,7 +114,7 @@ impl Source {
     /// A directory, `-` (stdin, y4m), a `.y4m` file, or an image.
     pub fn open(input: &Path) -> Result<Source, Error> {
         if input.as_os_str() == "-" {
-            return Ok(Source::Y4m(input.to_path_buf()));
+            return Ok(Source::Y4m(image_io::open_y4m(input)?));
         }
         if input.is_dir() {
             return Ok(Source::Directory(image_io::list_frames(input)?));
@@ -126,7 +127,7 @@ impl Source {
         }
         match image_io::extension(input).as_deref() {
             Some("png" | "pgm" | "ppm" | "pnm") => Ok(Source::Image(input.to_path_buf())),
-            _ => Ok(Source::Y4m(input.to_path_buf())),
+            _ => Ok(Source::Y4m(image_io::open_y4m(input)?)),
         }
     }
 
@@ -137,8 +138,7 @@ impl Source {
         mut each: impl FnMut(usize, &Image) -> Result<(), Error>,
     ) -> Result<usize, Error> {
         match self {
-            Source::Y4m(path) => {
-                let mut reader = image_io::open_y4m(&path)?;
+            Source::Y4m(mut reader) => {
                 let mut index = 0;
                 while let Some(image) = reader.next_frame()? {
                     each(index, &image)?;
