@@ -315,3 +315,24 @@ mod never_panics {
         }
     }
 }
+
+#[test]
+fn tracking_keeps_the_sky_side_when_brightness_flips() {
+    // Grey frames: on its own, a frame whose ground is brighter than its sky reads upside
+    // down (the brighter side is taken for the sky); after a tracked sequence, continuity
+    // keeps the right side.
+    let camera = camera_320();
+    let dark_sky = to_grey(&render(&camera, 10.0 * DEG, 2.0 * DEG, [70; 3], [190; 3]));
+    let alone = detect_once(camera, Pixels::Grey(&dark_sky)).expect("a line");
+    assert!(wrap_angle(alone.roll_rad - 10.0 * DEG).abs() > 170.0 * DEG);
+
+    let mut buffers = Buffers::new(320, 240);
+    let mut detector = HorizonDetector::new(camera);
+    for _ in 0..3 {
+        let normal = to_grey(&render(&camera, 10.0 * DEG, 2.0 * DEG, SKY, GROUND));
+        let frame = Frame::grey(320, 240, &normal).expect("fits");
+        assert_attitude(detector.detect(&frame, &mut buffers.workspace()), 10.0, 2.0, 0.5);
+    }
+    let frame = Frame::grey(320, 240, &dark_sky).expect("fits");
+    assert_attitude(detector.detect(&frame, &mut buffers.workspace()), 10.0, 2.0, 0.5);
+}
