@@ -331,8 +331,18 @@ fn tracking_keeps_the_sky_side_when_brightness_flips() {
     for _ in 0..3 {
         let normal = to_grey(&render(&camera, 10.0 * DEG, 2.0 * DEG, SKY, GROUND));
         let frame = Frame::grey(320, 240, &normal).expect("fits");
-        assert_attitude(detector.detect(&frame, &mut buffers.workspace()), 10.0, 2.0, 0.5);
+        assert_attitude(
+            detector.detect(&frame, &mut buffers.workspace()),
+            10.0,
+            2.0,
+            0.5,
+        );
     }
     let frame = Frame::grey(320, 240, &dark_sky).expect("fits");
-    assert_attitude(detector.detect(&frame, &mut buffers.workspace()), 10.0, 2.0, 0.5);
+    assert_attitude(
+        detector.detect(&frame, &mut buffers.workspace()),
+        10.0,
+        2.0,
+        0.5,
+    );
 }
