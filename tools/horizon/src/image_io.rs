@@ -256,6 +256,10 @@ pub fn list_frames(dir: &Path) -> Result<Vec<PathBuf>, Error> {
     Ok(files)
 }
 
+/// Largest frame side accepted from a stream header (a corrupt header must not make the tool
+/// allocate gigabytes).
+const MAX_SIDE: usize = 16_384;
+
 /// Chroma layout of a YUV4MPEG2 stream (8-bit only).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Chroma {
@@ -329,6 +333,11 @@ impl<R: BufRead> Y4mReader<R> {
         }
         if width == 0 || height == 0 {
             return Err(fail("header lacks W or H".into()));
+        }
+        if width > MAX_SIDE || height > MAX_SIDE {
+            return Err(fail(format!(
+                "{width}×{height} is larger than {MAX_SIDE} a side"
+            )));
         }
         Ok(Y4mReader {
             input,
@@ -487,5 +496,97 @@ impl<W: Write> Y4mWriter<W> {
 
     pub fn finish(mut self) -> std::io::Result<()> {
         self.out.flush()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn stream(header: &str, frames: &[Vec<u8>]) -> Vec<u8> {
+        let mut bytes = header.as_bytes().to_vec();
+        for f in frames {
+            bytes.extend_from_slice(b"FRAME\n");
+            bytes.extend_from_slice(f);
+        }
+        bytes
+    }
+
+    #[test]
+    fn y4m_420_as_ffmpeg_writes_it() {
+        // 4×2, 4:2:0 full range: Y 200 on top, 50 below; chroma neutral except a blue-ish
+        // right half (U high).
+        let y = [200, 200, 200, 200, 50, 50, 50, 50];
+        let u = [128, 200];
+        let v = [128, 128];
+        let frame: Vec<u8> = y.iter().chain(&u).chain(&v).copied().collect();
+        let bytes = stream(
+            "YUV4MPEG2 W4 H2 F30:1 Ip A1:1 C420jpeg XYSCSS=420JPEG\n",
+            &[frame],
+        );
+        let mut reader = Y4mReader::new(&bytes[..], "test").expect("header");
+        let image = reader.next_frame().expect("frame").expect("one frame");
+        assert_eq!((image.width, image.height, image.channels), (4, 2, 3));
+        assert_eq!(&image.data[0..3], &[200, 200, 200]);
+        assert_eq!(&image.data[12..15], &[50, 50, 50]);
+        let right = &image.data[9..12];
+        assert!(right[2] > right[0], "blue-ish: {right:?}");
+        assert!(reader.next_frame().expect("clean end").is_none());
+    }
+
+    #[test]
+    fn y4m_mono_and_studio_range() {
+        let bytes = stream("YUV4MPEG2 W2 H2 Cmono\n", &[vec![1, 2, 3, 4]]);
+        let mut reader = Y4mReader::new(&bytes[..], "test").expect("header");
+        let image = reader.next_frame().expect("frame").expect("one");
+        assert_eq!((image.channels, image.data.clone()), (1, vec![1, 2, 3, 4]));
+
+        // Studio range (no colour-space tag: 4:2:0 mpeg2): Y 16 is black, 235 white.
+        let frame = vec![16, 235, 16, 235, 128, 128];
+        let bytes = stream("YUV4MPEG2 W2 H2\n", &[frame]);
+        let mut reader = Y4mReader::new(&bytes[..], "test").expect("header");
+        let image = reader.next_frame().expect("frame").expect("one");
+        assert_eq!(&image.data[0..6], &[0, 0, 0, 255, 255, 255]);
+    }
+
+    #[test]
+    fn y4m_errors_name_the_offset() {
+        let err = Y4mReader::new(&b"YUV4MPEG2 W2 H2 C420p10\n"[..], "s.y4m").err();
+        assert!(err.is_some_and(|e| {
+            e.to_string()
+                .contains("s.y4m: byte 0: colour space C420p10")
+        }));
+        let bytes = stream("YUV4MPEG2 W2 H2 Cmono\n", &[vec![1, 2, 3, 4]]);
+        let mut broken = bytes.clone();
+        broken.extend_from_slice(b"FRAMX\n");
+        let mut reader = Y4mReader::new(&broken[..], "s.y4m").expect("header");
+        assert!(reader.next_frame().is_ok());
+        let e = reader.next_frame().expect_err("bad header");
+        assert!(e.to_string().contains("byte 32: frame 1"), "{e}");
+    }
+
+    #[test]
+    fn y4m_round_trip_is_close() {
+        let mut image = Image::new_rgb(4, 2);
+        for (i, v) in image.data.iter_mut().enumerate() {
+            *v = (i * 29 % 256) as u8;
+        }
+        let mut bytes = Vec::new();
+        let mut writer = Y4mWriter::new(&mut bytes, 4, 2, 10).expect("header");
+        writer.write(&image).expect("frame");
+        writer.finish().expect("flush");
+        let mut reader = Y4mReader::new(&bytes[..], "rt").expect("header");
+        let back = reader.next_frame().expect("frame").expect("one");
+        for (a, b) in image.data.iter().zip(&back.data) {
+            assert!((*a as i32 - *b as i32).abs() <= 3, "{a} vs {b}");
+        }
+    }
+
+    #[test]
+    fn pnm_header_errors() {
+        assert!(parse_pnm(b"P2\n2 2\n255\n").is_err_and(|(at, m)| at == 0 && m.contains("P5")));
+        assert!(parse_pnm(b"P5\n2 x\n255\n").is_err_and(|(at, m)| at == 5 && m.contains("height")));
+        let ok = parse_pnm(b"P5\n# comment\n2 1\n255\n\x07\x08").expect("valid");
+        assert_eq!(ok.data, vec![7, 8]);
     }
 }
