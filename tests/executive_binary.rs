@@ -5,8 +5,38 @@ use nix::sys::signal::{Signal, kill};
 use nix::unistd::Pid;
 use serde_json::Value;
 use skyframe_tests::{scratch, skyframe, workspace};
-use std::process::Stdio;
+use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
+
+/// `skyframe sim` logging into a fresh scratch directory (never the caller's `flights/`).
+fn sim(test: &str) -> Command {
+    let mut cmd = skyframe();
+    cmd.arg("sim").arg("--log-dir").arg(scratch(test));
+    cmd
+}
+
+/// `skyframe sim --json` for `seconds` without real-time settings (tests run beside other
+/// tests), plus `extra` arguments; the run must succeed.
+fn sim_json(test: &str, seconds: &str, extra: &[&str]) -> Value {
+    let out = sim(test)
+        .args([
+            "--duration",
+            seconds,
+            "--json",
+            "--priority",
+            "0",
+            "--no-mlockall",
+        ])
+        .args(extra)
+        .output()
+        .expect("runs");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    json(&out.stdout)
+}
 
 fn json(stdout: &[u8]) -> Value {
     serde_json::from_slice(stdout)
@@ -84,79 +114,139 @@ fn check_schedule_exits_1_on_infeasible_and_2_on_unreadable_files() {
     assert_eq!(out.status.code(), Some(2));
 }
 
+/// The run's timing log (`executive.bin`) through `skyframe-log to-csv`: one row per frame,
+/// by frame number, as the named columns.
+fn timing_rows(
+    summary: &Value,
+) -> std::collections::BTreeMap<u64, std::collections::HashMap<String, u64>> {
+    let log = summary["log_files"]
+        .as_array()
+        .and_then(|f| {
+            f.iter()
+                .filter_map(Value::as_str)
+                .find(|f| f.ends_with("/executive.bin"))
+        })
+        .expect("executive log")
+        .to_string();
+    let out_dir = std::path::Path::new(&log).with_file_name("csv");
+    let run = Command::new(skyframe_tests::binary("skyframe-log", "skyframe-log"))
+        .args(["to-csv", &log, "--out-dir"])
+        .arg(&out_dir)
+        .output()
+        .expect("skyframe-log runs");
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let csv = std::fs::read_to_string(out_dir.join("executive.1.csv")).expect("csv");
+    let columns: Vec<String> = csv
+        .lines()
+        .find_map(|l| l.strip_prefix("% time,"))
+        .expect("column comment")
+        .split(',')
+        .map(str::to_string)
+        .collect();
+    csv.lines()
+        .filter(|l| !l.starts_with('%'))
+        .map(|line| {
+            let row: std::collections::HashMap<String, u64> = columns
+                .iter()
+                .zip(line.split(',').skip(1))
+                .map(|(c, v)| (c.clone(), v.parse().unwrap_or(u64::MAX)))
+                .collect();
+            (row["frame"], row)
+        })
+        .collect()
+}
+
 #[test]
 fn injected_overruns_are_detected_on_the_real_clock_and_policies_apply() {
     // imu (budget 300 us, policy reset) gets 3 ms extra in frames 10..20; estimator (log)
-    // 12 ms extra in frames 50..52, which runs frames 50 and 51 into the next frame.
-    let out = skyframe()
-        .args([
-            "sim",
-            "--duration",
-            "1",
-            "--json",
-            "--priority",
-            "0",
-            "--no-mlockall",
-        ])
-        .args([
+    // 12 ms extra in frames 50..52, which runs frames 50 and 51 into the next frame. The
+    // timing log says exactly what happened in those frames; elsewhere a loaded test machine
+    // may add overruns of its own, so totals are only bounded below.
+    let s = sim_json(
+        "injected_overruns_are_detected_on_the_real_clock_and_policies_apply",
+        "1",
+        &[
             "--inject-overrun",
             "imu:3000@10..20",
             "--inject-overrun",
             "estimator:12000@50..52",
-        ])
-        .output()
-        .expect("runs");
+        ],
+    );
+    const IMU: u64 = 1 << 0;
+    const ESTIMATOR: u64 = 1 << 1;
+    let rows = timing_rows(&s);
+    for frame in 10..20 {
+        let r = &rows[&frame];
+        assert_ne!(
+            r["over_budget_mask"] & IMU,
+            0,
+            "frame {frame}: imu over budget"
+        );
+        assert!(r["exec_ns_imu"] >= 3_000_000, "frame {frame}");
+        assert_ne!(
+            rows[&(frame + 1)]["reset_mask"] & IMU,
+            0,
+            "frame {}: reset policy",
+            frame + 1
+        );
+    }
+    for frame in [50, 51] {
+        let r = &rows[&frame];
+        assert_ne!(r["over_budget_mask"] & ESTIMATOR, 0, "frame {frame}");
+        assert_ne!(
+            r["over_frame_mask"] & ESTIMATOR,
+            0,
+            "frame {frame}: ran into the next frame"
+        );
+        assert!(r["start_latency_ns"] < 10_000_000 || frame == 50);
+    }
     assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+        rows[&51]["start_latency_ns"] >= 2_000_000,
+        "frame 51 starts late behind frame 50"
     );
-    let s = json(&out.stdout);
+    assert!(
+        rows.values().all(|r| r["reset_mask"] & ESTIMATOR == 0),
+        "log policy never resets"
+    );
+
     let imu = task(&s, "imu");
-    assert_eq!(imu["overruns_budget"], 10);
-    assert_eq!(
-        imu["resets"], 10,
-        "reset policy: recover + init before each next release"
-    );
-    assert!(imu["exec_max_us"].as_f64().unwrap_or(0.0) >= 3000.0);
+    assert!(imu["overruns_budget"].as_u64().unwrap_or(0) >= 10, "{s}");
+    assert!(imu["resets"].as_u64().unwrap_or(0) >= 10, "{s}");
     let estimator = task(&s, "estimator");
-    assert_eq!(estimator["overruns_budget"], 2);
-    assert_eq!(estimator["overruns_frame"], 2);
+    assert!(
+        estimator["overruns_frame"].as_u64().unwrap_or(0) >= 2,
+        "{s}"
+    );
     assert_eq!(estimator["resets"], 0, "log policy only counts");
-    assert_eq!(s["frames_overrun"], 2);
-    assert!(s["frames_late"].as_u64().unwrap_or(0) >= 2, "{s}");
+    assert!(s["frames_overrun"].as_u64().unwrap_or(0) >= 2, "{s}");
     assert!(
         s["max_start_latency_us"].as_f64().unwrap_or(0.0) >= 2000.0,
         "{s}"
     );
-    assert_eq!(task(&s, "gps")["overruns_budget"], 0);
 }
 
 #[test]
 fn a_long_stall_misses_whole_frames_and_counts_their_releases() {
     // 35 ms in imu's step of frame 30 (due at 300 ms): it ends near 335 ms, so frames 31
     // (310-320 ms) and 32 (320-330 ms) pass whole and frame 33 starts about 5 ms late.
-    let out = skyframe()
-        .args([
-            "sim",
-            "--duration",
-            "1",
-            "--json",
-            "--priority",
-            "0",
-            "--no-mlockall",
-        ])
-        .args(["--inject-overrun", "imu:35000@30..31"])
-        .output()
-        .expect("runs");
-    assert!(out.status.success());
-    let s = json(&out.stdout);
+    let s = sim_json(
+        "a_long_stall_misses_whole_frames_and_counts_their_releases",
+        "1",
+        &["--inject-overrun", "imu:35000@30..31"],
+    );
     assert!(s["frames_missed"].as_u64().unwrap_or(0) >= 2, "{s}");
     assert!(
         task(&s, "imu")["overruns_missed"].as_u64().unwrap_or(0) >= 2,
         "{s}"
     );
-    assert_eq!(task(&s, "imu")["overruns_frame"], 1, "{s}");
+    assert!(
+        task(&s, "imu")["overruns_frame"].as_u64().unwrap_or(0) >= 1,
+        "{s}"
+    );
     let frames = s["frames"].as_u64().unwrap_or(0) + s["frames_missed"].as_u64().unwrap_or(0);
     assert!(
         (100..=101).contains(&frames),
@@ -165,9 +255,8 @@ fn a_long_stall_misses_whole_frames_and_counts_their_releases() {
 }
 
 fn stops_cleanly_on(signal: Signal) {
-    let child = skyframe()
+    let child = sim("stops_cleanly_on")
         .args([
-            "sim",
             "--duration",
             "60",
             "--json",
@@ -216,25 +305,20 @@ fn watchdog_counts_a_task_whose_releases_are_all_skipped() {
     // logging (policy skip, every 10 ms) overruns on every release in frames 20..60: every
     // other release is skipped, so it still completes steps and stays alive. The health task
     // runs every 100 ms and sees all tasks alive.
-    let out = skyframe()
-        .args([
-            "sim",
-            "--duration",
-            "1",
-            "--json",
-            "--priority",
-            "0",
-            "--no-mlockall",
-        ])
-        .args(["--inject-overrun", "logging:1000@20..60"])
-        .output()
-        .expect("runs");
-    assert!(out.status.success());
-    let s = json(&out.stdout);
+    let s = sim_json(
+        "watchdog_counts_a_task_whose_releases_are_all_skipped",
+        "1",
+        &["--inject-overrun", "logging:1000@20..60"],
+    );
     assert_eq!(s["watchdog_checks"], 10, "{s}");
     let logging = task(&s, "logging");
-    assert_eq!(logging["skipped"], 20, "{s}");
-    assert_eq!(logging["overruns_budget"], 20, "{s}");
+    // 40 releases in frames 20..60, each over budget when it runs, each skipping the next:
+    // 20 run and 20 are skipped (a loaded machine may add overruns elsewhere).
+    assert!(logging["skipped"].as_u64().unwrap_or(0) >= 20, "{s}");
+    assert!(
+        logging["overruns_budget"].as_u64().unwrap_or(0) >= 20,
+        "{s}"
+    );
     assert!(
         s["tasks"]
             .as_array()
@@ -254,7 +338,16 @@ fn real_time_refusals_are_reported_once_and_the_run_goes_on() {
             "--inh-caps=-sys_nice,-ipc_lock",
         ])
         .arg(skyframe_tests::binary("skyframe-linux", "skyframe"))
-        .args(["sim", "--duration", "0.3", "--json", "--cpu", "4096"])
+        .args([
+            "sim",
+            "--duration",
+            "0.3",
+            "--json",
+            "--cpu",
+            "4096",
+            "--log-dir",
+        ])
+        .arg(scratch("refusals"))
         .output();
     let Ok(out) = out else {
         panic!("setpriv (util-linux) is needed for this test");
@@ -271,9 +364,8 @@ fn real_time_refusals_are_reported_once_and_the_run_goes_on() {
 
 #[test]
 fn pinning_to_an_existing_cpu_is_granted() {
-    let out = skyframe()
+    let out = sim("pinning_to_an_existing_cpu_is_granted")
         .args([
-            "sim",
             "--duration",
             "0.2",
             "--json",
@@ -293,20 +385,7 @@ fn pinning_to_an_existing_cpu_is_granted() {
 
 #[test]
 fn programmed_duration_ends_the_run() {
-    let out = skyframe()
-        .args([
-            "sim",
-            "--duration",
-            "0.5",
-            "--json",
-            "--priority",
-            "0",
-            "--no-mlockall",
-        ])
-        .output()
-        .expect("runs");
-    assert!(out.status.success());
-    let s = json(&out.stdout);
+    let s = sim_json("programmed_duration_ends_the_run", "0.5", &[]);
     assert_eq!(s["stop_reason"], "duration");
     assert_eq!(task(&s, "imu")["releases"], 50);
     assert_eq!(task(&s, "gps")["releases"], 5);
@@ -355,8 +434,8 @@ fn bench_prints_both_latency_distributions_overhead_and_ratios() {
 
 #[test]
 fn bad_arguments_exit_2_with_one_line() {
-    let out = skyframe()
-        .args(["sim", "--inject-overrun", "camera:1@1..2"])
+    let out = sim("bench_prints_both_latency_distributions_overhead_and_ratios")
+        .args(["--inject-overrun", "camera:1@1..2"])
         .output()
         .expect("runs");
     assert_eq!(out.status.code(), Some(2));
@@ -398,4 +477,93 @@ fn bench_compares_against_cyclictest_in_the_same_run() {
             "{b}"
         );
     }
+}
+
+#[test]
+fn a_run_logs_its_timing_records_readably_for_skyframe_log() {
+    let dir = scratch("timing-log");
+    let out = skyframe()
+        .args([
+            "sim",
+            "--duration",
+            "0.5",
+            "--json",
+            "--priority",
+            "0",
+            "--no-mlockall",
+            "--log-dir",
+        ])
+        .arg(&dir)
+        .output()
+        .expect("runs");
+    assert!(out.status.success());
+    let s = json(&out.stdout);
+    let files: Vec<&str> = s["log_files"]
+        .as_array()
+        .expect("log files")
+        .iter()
+        .filter_map(Value::as_str)
+        .collect();
+    assert_eq!(files.len(), 2, "{s}");
+    let file = files
+        .iter()
+        .find(|f| f.ends_with("/executive.bin"))
+        .expect("executive log");
+    assert!(file.starts_with(dir.to_str().expect("utf-8")), "{file}");
+    assert_eq!(
+        s["log_streams"][0]["records_written"], 54,
+        "definition, comment, begin, 50 frames, end"
+    );
+    // health.bin: a snapshot of the 8 tasks at 0 s and at shutdown, between its begin/end.
+    assert_eq!(s["log_streams"][1]["name"], "health");
+    assert_eq!(s["log_streams"][1]["records_written"], 2 + 1 + 16 + 1);
+    assert!(
+        s["tasks"]
+            .as_array()
+            .expect("tasks")
+            .iter()
+            .all(|t| t["log_dropped"] == 0)
+    );
+    let info = Command::new(skyframe_tests::binary("skyframe-log", "skyframe-log"))
+        .args(["info", *file])
+        .output()
+        .expect("skyframe-log runs");
+    let text = String::from_utf8_lossy(&info.stdout);
+    assert!(
+        info.status.success(),
+        "{text}{}",
+        String::from_utf8_lossy(&info.stderr)
+    );
+    assert!(text.contains("1: data blocks 50"), "{text}");
+    assert!(text.contains("closed cleanly: yes"), "{text}");
+    assert!(text.contains("exec_ns_imu"), "{text}");
+}
+
+#[test]
+fn bench_parsers_measures_each_decoder_and_the_nmea_crate_on_the_same_bytes() {
+    let out = skyframe()
+        .args(["bench", "parsers", "--json", "--megabytes", "0.05"])
+        .output()
+        .expect("runs");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let b = json(&out.stdout);
+    for decoder in ["imu", "servo", "gps_all_sentences"] {
+        assert!(b[decoder]["mb_per_s"].as_f64().unwrap_or(0.0) > 0.0, "{b}");
+        assert!(b[decoder]["frames"].as_u64().unwrap_or(0) > 0, "{b}");
+    }
+    let g = &b["gga_rmc"];
+    assert!(
+        g["ours_mb_per_s"].as_f64().unwrap_or(0.0) > 0.0
+            && g["nmea_crate_mb_per_s"].as_f64().unwrap_or(0.0) > 0.0,
+        "{b}"
+    );
+    assert_eq!(
+        g["sentences"].as_u64().unwrap_or(0) % 2,
+        0,
+        "GGA and RMC in pairs: {b}"
+    );
 }

@@ -25,6 +25,12 @@ impl<T> Sink<T> for Producer<'_, T> {
     }
 }
 
+/// Where a task's encoded log records go: a ring the shell's log writer drains. Takes a
+/// whole record or nothing, and never waits.
+pub trait RecordSink {
+    fn push_record(&mut self, record: &[u8]) -> bool;
+}
+
 /// The newest value of something, shared between tasks of one executive (one thread).
 ///
 /// Single-threaded by construction (`Cell`, so not `Sync`): tasks of a cyclic executive never

@@ -7,6 +7,11 @@
 //! - [`executive`]: steps the tasks frame by frame, measures them, applies overrun policies,
 //!   keeps health and emits one timing record per frame;
 //! - [`comm`]: the lock-free ways tasks hand data to each other and to the shell;
+//! - [`devices`]: the GPS, IMU and servo board wire protocols, bytes to SI-unit frames and
+//!   back;
+//! - [`tasks`]: the tasks the schedule names;
+//! - [`logfmt`]: the binary flight log: encoding records, reading and printing them;
+//! - [`link`]: the vehicle–ground protocol: messages, encoding, command authentication;
 //! - [`horizon`]: roll and pitch from a camera frame (edges, Hough, sky/ground validation).
 //!
 //! The OS side (threads, files, sockets, timers) lives in `skyframe-shell` and the
@@ -19,7 +24,10 @@ extern crate std;
 #[macro_use]
 pub mod facade;
 pub mod comm;
+pub mod devices;
 pub mod executive;
 pub mod horizon;
+pub mod link;
+pub mod logfmt;
 pub mod schedule;
 pub mod tasks;

@@ -2,6 +2,11 @@
 //!
 //! [`VirtualClock`] is time that moves only when the executive sleeps or a task is made to
 //! spin: a run is deterministic and as fast as the machine allows.
+//!
+//! [`plant`] is the simulated airplane: 6-DOF dynamics, wind, ground contact and the sensor
+//! models, all in virtual time and deterministic for a seed.
+
+pub mod plant;
 
 use skyframe_core::executive::{Clock, FrameTimer};
 use std::sync::atomic::{AtomicU64, Ordering};

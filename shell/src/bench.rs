@@ -171,8 +171,8 @@ pub fn run<P: Platform>(
         .tasks
         .iter()
         .fold(OverrunFigures::default(), |mut o, t| {
-            o.budget += u64::from(t.overruns.budget);
-            o.frame += u64::from(t.overruns.frame);
+            o.budget += u64::from(t.health.overruns.budget);
+            o.frame += u64::from(t.health.overruns.frame);
             o
         });
     Ok(BenchReport {

@@ -5,16 +5,14 @@
 
 use crate::bench;
 use crate::check_schedule::check_file;
-use crate::host::{RunOptions, TimerCheckConfig, run_executive, stop_on_signals};
-use crate::idle::{IdleTask, idle_tasks};
+use crate::flight::{Devices, FlightPlan, fly, render_flight};
+use crate::host::{RunOptions, TimerCheckConfig, stop_on_signals};
 use crate::platform::{Platform, RtConfig};
-use crate::summary::{SummaryReport, render_summary};
+use crate::vehicle::VehicleConfig;
 use clap::{Args, Parser, Subcommand};
-use skyframe_core::comm::LatestSlot;
-use skyframe_core::executive::{FaultPlan, OverrunInjection, Task};
+use skyframe_core::executive::{FaultPlan, OverrunInjection};
 use skyframe_core::schedule::{FrameTable, SHIPPED};
-use skyframe_core::tasks::health::HealthTask;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
@@ -41,6 +39,8 @@ pub struct Cli {
 pub enum Command {
     /// Fly the simulated airplane (until the simulator lands: the executive with idle tasks).
     Sim(SimArgs),
+    /// Fly the real airplane: devices on the serial ports `--vehicle` names.
+    Run(RunArgs),
     /// Validate a schedule file and print its frame table, load and slack.
     CheckSchedule {
         /// The schedule to check.
@@ -80,11 +80,12 @@ impl RealtimeArgs {
     }
 }
 
+/// What every flight takes (`sim` and `run`).
 #[derive(Args, Debug)]
-pub struct SimArgs {
+pub struct FlightArgs {
     /// How long to fly, in seconds.
-    #[arg(long, default_value_t = 10.0, value_parser = parse_seconds)]
-    pub duration: f64,
+    #[arg(long, value_parser = parse_seconds)]
+    pub duration: Option<f64>,
     /// Make a task overrun on purpose: TASK:EXTRA_US@FROM..TO (minor frames since start),
     /// e.g. imu:12000@100..110. Repeatable.
     #[arg(long = "inject-overrun", value_name = "SPEC", value_parser = parse_injection)]
@@ -92,6 +93,10 @@ pub struct SimArgs {
     /// Print the end-of-run summary as one JSON object.
     #[arg(long)]
     pub json: bool,
+    /// Where flights are logged: each run writes into a new subdirectory named by its start
+    /// time (UTC). Default: `flights`, or `[log] dir` of the vehicle file.
+    #[arg(long)]
+    pub log_dir: Option<PathBuf>,
     /// Milliseconds of timer measurement before the first frame (0 skips the check).
     #[arg(long, default_value_t = 200)]
     pub timer_check_ms: u64,
@@ -104,7 +109,39 @@ pub struct SimArgs {
 }
 
 #[derive(Args, Debug)]
+pub struct SimArgs {
+    #[command(flatten)]
+    pub flight: FlightArgs,
+}
+
+#[derive(Args, Debug)]
+pub struct RunArgs {
+    /// The vehicle file: device ports and baud rates, log directory.
+    #[arg(long, value_name = "FILE")]
+    pub vehicle: PathBuf,
+    #[command(flatten)]
+    pub flight: FlightArgs,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum BenchWhat {
+    /// Decoder throughput (MB/s) of the IMU, servo and GPS protocols, and the `nmea` crate's
+    /// on the same GGA/RMC bytes.
+    Parsers {
+        /// Print one JSON object.
+        #[arg(long)]
+        json: bool,
+        /// Size of each test stream, in megabytes.
+        #[arg(long, default_value_t = 5.0, value_parser = parse_seconds)]
+        megabytes: f64,
+    },
+}
+
+#[derive(Args, Debug)]
+#[command(args_conflicts_with_subcommands = true)]
 pub struct BenchArgs {
+    #[command(subcommand)]
+    pub what: Option<BenchWhat>,
     /// Seconds for each of the two runs (bare loop, executive).
     #[arg(long, default_value_t = 10.0, value_parser = parse_seconds)]
     pub seconds: f64,
@@ -213,6 +250,28 @@ fn run<P: Platform>(platform: &P, command: Command) -> Result<ExitCode, String> 
                 Ok(ExitCode::from(1))
             }
         }
+        Command::Bench(BenchArgs {
+            what: Some(BenchWhat::Parsers { json, megabytes }),
+            ..
+        }) => {
+            let figures = crate::bench_parsers::run(megabytes);
+            if json {
+                let text = serde_json::to_string_pretty(&figures).map_err(|e| e.to_string())?;
+                println!("{text}");
+            } else {
+                println!(
+                    "imu {:.1} MB/s, servo {:.1} MB/s, gps (all sentences) {:.1} MB/s; \
+                     GGA/RMC ours {:.1} MB/s vs nmea crate {:.1} MB/s (x{:.2})",
+                    figures.imu.mb_per_s,
+                    figures.servo.mb_per_s,
+                    figures.gps_all_sentences.mb_per_s,
+                    figures.gga_rmc.ours_mb_per_s,
+                    figures.gga_rmc.nmea_crate_mb_per_s,
+                    figures.gga_rmc.ratio
+                );
+            }
+            Ok(ExitCode::SUCCESS)
+        }
         Command::Bench(args) => {
             let faults = fault_plan(&SHIPPED, &args.inject_overrun)?;
             let stop = stop_flag()?;
@@ -237,72 +296,59 @@ fn run<P: Platform>(platform: &P, command: Command) -> Result<ExitCode, String> 
             Ok(ExitCode::SUCCESS)
         }
         Command::Sim(args) => {
-            let faults = fault_plan(&SHIPPED, &args.inject_overrun)?;
-            let stop = stop_flag()?;
             eprintln!(
                 "skyframe sim: the simulated airplane is not built yet (issue 5); flying the \
-                 executive with idle tasks for {} s",
-                args.duration
+                 executive with idle tasks"
             );
-            let watchdog_out = LatestSlot::new();
-            let mut watchdog = HealthTask::new(&watchdog_out);
-            let mut idle = idle_tasks(SHIPPED.tasks.len());
-            let mut tasks = with_watchdog(&SHIPPED, &mut idle, &mut watchdog);
-            let summary = run_executive(
+            let mut flight = args.flight;
+            flight.duration = flight.duration.or(Some(10.0));
+            fly_and_report(platform, Devices::None, &flight, Path::new("flights"))
+        }
+        Command::Run(args) => {
+            let vehicle = VehicleConfig::load(&args.vehicle)?;
+            fly_and_report(
                 platform,
-                &SHIPPED,
-                &mut tasks,
-                RunOptions {
-                    faults,
-                    realtime: args.realtime.config(),
-                    timer_check: TimerCheckConfig {
-                        duration: Duration::from_millis(args.timer_check_ms),
-                        refuse_if_over_margin: args.refuse_late_timer,
-                    },
-                    ..RunOptions::new(Some(Duration::from_secs_f64(args.duration)), &stop)
-                },
-                |_| {},
+                Devices::Serial(&vehicle),
+                &args.flight,
+                &vehicle.log.dir,
             )
-            .map_err(|e| e.to_string())?;
-            drop(tasks);
-            let mut report = SummaryReport::from(&summary);
-            report.set_watchdog(watchdog.report());
-            if args.json {
-                let json = serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?;
-                println!("{json}");
-            } else {
-                print!("{}", render_summary(&summary));
-                let misses: Vec<String> = report
-                    .tasks
-                    .iter()
-                    .map(|t| format!("{} {}", t.name, t.watchdog_misses))
-                    .collect();
-                println!(
-                    "watchdog: {} checks; misses per task: {}",
-                    report.watchdog_checks,
-                    misses.join(", ")
-                );
-            }
-            Ok(ExitCode::SUCCESS)
         }
     }
 }
 
-/// Idle tasks in every slot but `health`, which gets the real watchdog.
-fn with_watchdog<'a>(
-    table: &FrameTable,
-    idle: &'a mut [IdleTask],
-    watchdog: &'a mut HealthTask<'_>,
-) -> Vec<&'a mut dyn Task> {
-    let health = table.task_index("health");
-    let mut watchdog = Some(watchdog as &mut dyn Task);
-    idle.iter_mut()
-        .enumerate()
-        .map(|(i, idle)| match watchdog.take_if(|_| Some(i) == health) {
-            Some(w) => w,
-            None => idle as &mut dyn Task,
-        })
-        .collect()
+/// Flies with `devices`, prints the report; the flight's own failures are exit 1.
+fn fly_and_report<P: Platform>(
+    platform: &P,
+    devices: Devices<'_>,
+    args: &FlightArgs,
+    default_log_dir: &Path,
+) -> Result<ExitCode, String> {
+    let faults = fault_plan(&SHIPPED, &args.inject_overrun)?;
+    let stop = stop_flag()?;
+    let report = fly(
+        platform,
+        &SHIPPED,
+        FlightPlan {
+            log_dir: args.log_dir.as_deref().unwrap_or(default_log_dir),
+            devices,
+            options: RunOptions {
+                faults,
+                realtime: args.realtime.config(),
+                timer_check: TimerCheckConfig {
+                    duration: Duration::from_millis(args.timer_check_ms),
+                    refuse_if_over_margin: args.refuse_late_timer,
+                },
+                ..RunOptions::new(args.duration.map(Duration::from_secs_f64), &stop)
+            },
+        },
+    )?;
+    if args.json {
+        let json = serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?;
+        println!("{json}");
+    } else {
+        print!("{}", render_flight(&report));
+    }
+    Ok(ExitCode::SUCCESS)
 }
 
 #[cfg(test)]

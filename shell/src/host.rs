@@ -86,6 +86,8 @@ pub struct RunOptions<'a> {
     pub realtime: RtConfig,
     /// Set by signal handlers or a stop command; checked between frames.
     pub stop: &'a AtomicBool,
+    /// Log TIME of the executive's clock zero (wall clock on a vehicle, 0 in simulation).
+    pub log_time_origin_ns: u64,
 }
 
 impl<'a> RunOptions<'a> {
@@ -97,6 +99,7 @@ impl<'a> RunOptions<'a> {
             faults: FaultPlan::new(),
             realtime: RtConfig::default(),
             stop,
+            log_time_origin_ns: 0,
         }
     }
 }
@@ -138,7 +141,17 @@ pub struct RunSummary {
     /// Time from the first release to the end of the last frame.
     pub elapsed_ns: u64,
     pub frames: FrameStats,
-    pub tasks: Vec<TaskHealth>,
+    pub tasks: Vec<TaskAtEnd>,
+}
+
+/// A task's health when the run ended, with what the health board keeps beside it.
+#[derive(Clone, Debug)]
+pub struct TaskAtEnd {
+    pub health: TaskHealth,
+    /// Log records its ring could not take.
+    pub log_dropped: u32,
+    /// What it last said was wrong with its inputs (a stale device), if anything.
+    pub degraded: Option<&'static str>,
 }
 
 /// Runs `tasks` (one per slot of `table`, in table order) until the duration elapses or
@@ -202,7 +215,7 @@ pub fn run_executive<P: Platform>(
     })
 }
 
-type Flown = (StopReason, u64, FrameStats, Vec<TaskHealth>);
+type Flown = (StopReason, u64, FrameStats, Vec<TaskAtEnd>);
 
 fn fly<T: FrameTimer>(
     table: &'static FrameTable,
@@ -213,6 +226,8 @@ fn fly<T: FrameTimer>(
 ) -> Result<Flown, StartError> {
     let mut executive = Executive::new(table, timer);
     executive.set_faults(options.faults.clone());
+    // The timer's clock starts now-ish; the caller measured the wall clock just before.
+    executive.set_log_time_origin(options.log_time_origin_ns);
     // Frame 0 one minor frame from now: init has had its time, the first frame starts clean.
     let first_release = timer.now_ns() + table.minor_frame_ns;
     executive.start(tasks, first_release)?;
@@ -235,7 +250,13 @@ fn fly<T: FrameTimer>(
     executive.shutdown(tasks);
     let health = executive.health();
     let tasks = (0..health.task_count())
-        .filter_map(|i| health.task(i).copied())
+        .filter_map(|i| {
+            health.task(i).map(|h| TaskAtEnd {
+                health: *h,
+                log_dropped: health.log_dropped(i),
+                degraded: health.degraded(i),
+            })
+        })
         .collect();
     Ok((reason, elapsed, health.frames, tasks))
 }
@@ -387,9 +408,9 @@ mod tests {
         assert_eq!(seen.len(), 6000, "60 s of 10 ms frames, none dropped");
         assert!(seen.windows(2).all(|w| w[1] == w[0] + 1));
         assert_eq!(summary.frames.timing_records_dropped, 0);
-        assert_eq!(summary.tasks[0].releases, 6000);
+        assert_eq!(summary.tasks[0].health.releases, 6000);
         assert!(
-            summary.tasks.iter().all(|t| !t.running),
+            summary.tasks.iter().all(|t| !t.health.running),
             "every task was shut down"
         );
         assert_eq!(summary.realtime.refusals().len(), 1);
@@ -455,7 +476,7 @@ mod tests {
         // gps (budget 500 us, policy reset) runs every 10th frame: 50 releases in 5 s, each
         // 1 ms over. Every overrun resets it before its next release, which overruns again;
         // the last overrun has no next release to reset.
-        let h = &summary.tasks[gps];
+        let h = &summary.tasks[gps].health;
         assert_eq!(h.releases, 50);
         assert_eq!(h.overruns.budget, 50);
         assert_eq!(h.resets, 49);

@@ -7,9 +7,11 @@
 //! back ends through [`platform::Platform`].
 
 pub mod bench;
+pub mod bench_parsers;
 pub mod check_schedule;
 pub mod cli;
 pub mod cyclictest;
+pub mod flight;
 pub mod flightdir;
 pub mod host;
 pub mod idle;
@@ -19,4 +21,5 @@ pub mod ring;
 pub mod serial;
 pub mod stats;
 pub mod summary;
+pub mod timing_log;
 pub mod vehicle;

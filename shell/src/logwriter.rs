@@ -55,6 +55,8 @@ impl WriterConfig {
 #[derive(Debug, Default)]
 pub struct StreamStatus {
     pub records_written: AtomicU64,
+    /// Records known to be on disk: written before the last successful fsync.
+    pub records_synced: AtomicU64,
     pub bytes_written: AtomicU64,
     /// Records the producer could not fit into the ring.
     pub records_dropped: AtomicU64,
@@ -91,6 +93,12 @@ impl LogStream {
                 false
             }
         }
+    }
+}
+
+impl skyframe_core::comm::RecordSink for LogStream {
+    fn push_record(&mut self, record: &[u8]) -> bool {
+        LogStream::push_record(self, record)
     }
 }
 
@@ -248,8 +256,10 @@ impl Drain {
 
     fn close(&mut self) -> std::io::Result<()> {
         if let Some(mut w) = self.file.take() {
+            let written = self.status.records_written.load(Ordering::Relaxed);
             w.flush()?;
             w.get_ref().sync_all()?;
+            self.status.records_synced.store(written, Ordering::Relaxed);
         }
         Ok(())
     }
@@ -340,6 +350,7 @@ impl Drain {
         if self.status.failed.load(Ordering::Relaxed) {
             return;
         }
+        let written = self.status.records_written.load(Ordering::Relaxed);
         let result = self.file.as_mut().map_or(Ok(()), |w| {
             w.flush()?;
             if sync {
@@ -348,6 +359,9 @@ impl Drain {
                 Ok(())
             }
         });
+        if result.is_ok() && sync {
+            self.status.records_synced.store(written, Ordering::Relaxed);
+        }
         if let Err(e) = result {
             log::error!(
                 "log {}: flush failed, logging stopped for this stream: {e}",

@@ -234,6 +234,68 @@ fn write_pending(
     Ok(())
 }
 
+/// Both rings of a device as one embedded-io port, for the device task that owns it: reads
+/// take what is waiting, writes queue what fits; neither ever waits.
+pub struct DevicePort {
+    pub rx: RingReader,
+    pub tx: RingWriter,
+}
+
+impl DevicePort {
+    pub fn new(rx: rtrb::Consumer<u8>, tx: rtrb::Producer<u8>) -> Self {
+        Self {
+            rx: RingReader(rx),
+            tx: RingWriter(tx),
+        }
+    }
+}
+
+impl embedded_io::ErrorType for DevicePort {
+    type Error = core::convert::Infallible;
+}
+
+impl embedded_io::ReadReady for DevicePort {
+    fn read_ready(&mut self) -> Result<bool, Self::Error> {
+        self.rx.read_ready()
+    }
+}
+
+impl embedded_io::Read for DevicePort {
+    fn read(&mut self, buf: &mut [u8]) -> Result<usize, Self::Error> {
+        self.rx.read(buf)
+    }
+}
+
+impl embedded_io::WriteReady for DevicePort {
+    fn write_ready(&mut self) -> Result<bool, Self::Error> {
+        self.tx.write_ready()
+    }
+}
+
+impl embedded_io::Write for DevicePort {
+    fn write(&mut self, buf: &[u8]) -> Result<usize, Self::Error> {
+        self.tx.write(buf)
+    }
+
+    fn flush(&mut self) -> Result<(), Self::Error> {
+        Ok(())
+    }
+}
+
+/// Opens and closes `config`'s port once, to say at start — in one line naming the device
+/// and the path — when it cannot be opened at all (a typo in vehicle.toml). Later losses are
+/// the I/O thread's to retry.
+pub fn check_opens(config: &PortConfig) -> Result<(), String> {
+    open(config).map(drop).map_err(|e| {
+        format!(
+            "devices.{}.port = {}: cannot open: {}",
+            config.device,
+            config.path.display(),
+            e.description
+        )
+    })
+}
+
 /// The rx ring as an embedded-io byte source for a device task: `read_ready` says whether
 /// bytes are waiting, `read` takes what is there and never waits.
 pub struct RingReader(pub rtrb::Consumer<u8>);
@@ -270,6 +332,12 @@ impl embedded_io::Read for RingReader {
 
 impl embedded_io::ErrorType for RingWriter {
     type Error = core::convert::Infallible;
+}
+
+impl embedded_io::WriteReady for RingWriter {
+    fn write_ready(&mut self) -> Result<bool, Self::Error> {
+        Ok(self.0.slots() > 0)
+    }
 }
 
 impl embedded_io::Write for RingWriter {

@@ -29,6 +29,10 @@ pub struct TaskReport {
     pub exec_histogram: Vec<u32>,
     /// Watchdog checks at which the task had been released but had not completed a step.
     pub watchdog_misses: u32,
+    /// Log records the task's ring could not take.
+    pub log_dropped: u32,
+    /// What the task last said was wrong with its inputs (e.g. "device stale").
+    pub degraded: Option<&'static str>,
 }
 
 #[derive(Debug, Serialize)]
@@ -80,7 +84,8 @@ impl From<&RunSummary> for SummaryReport {
                 .tasks
                 .iter()
                 .zip(&s.tasks)
-                .map(|(slot, h)| TaskReport {
+                .map(|(slot, end)| (slot, &end.health, end.log_dropped, end.degraded))
+                .map(|(slot, h, log_dropped, degraded)| TaskReport {
                     name: slot.name,
                     budget_us: slot.budget_ns / 1000,
                     initialised: h.initialised,
@@ -100,31 +105,43 @@ impl From<&RunSummary> for SummaryReport {
                     last_fault: h.last_fault,
                     exec_histogram: h.exec.histogram.to_vec(),
                     watchdog_misses: 0,
+                    log_dropped,
+                    degraded,
                 })
                 .collect(),
         }
     }
 }
 
-/// The end-of-run summary: how the run ended, frame statistics, one row per task.
-pub fn render_summary(s: &RunSummary) -> String {
+/// The end-of-run summary for people: how the run ended, frame statistics, one row per task.
+pub fn render_summary(s: &SummaryReport) -> String {
     let mut out = format!(
         "run ended ({}) after {:.2} s: {} frames, {} late, {} missed, {} overrun; max start \
-         latency {} us; timing records dropped {}\n",
+         latency {:.0} us; timing records dropped {}\n",
         match s.stop_reason {
             StopReason::Duration => "programmed duration",
             StopReason::Requested => "stop requested",
         },
-        s.elapsed_ns as f64 / 1e9,
-        s.frames.frames,
-        s.frames.late,
-        s.frames.missed,
-        s.frames.overrun,
-        s.frames.max_start_latency_ns / 1000,
-        s.frames.timing_records_dropped,
+        s.elapsed_s,
+        s.frames,
+        s.frames_late,
+        s.frames_missed,
+        s.frames_overrun,
+        s.max_start_latency_us,
+        s.timing_records_dropped,
     );
+    if let Some(c) = &s.timer_check {
+        out += &format!(
+            "timer check: wake-up latency p50 {:.0} us, p99 {:.0} us, max {:.0} us against a {:.0} us margin{}\n",
+            c.wakeup_latency_us.p50,
+            c.wakeup_latency_us.p99,
+            c.wakeup_latency_us.max,
+            c.margin_us,
+            if c.over_margin { " (OVER)" } else { "" }
+        );
+    }
     out += &format!(
-        "{:<10} {:>8} {:>9} {:>9} {:>9} {:>7} {:>6} {:>7} {:>7} {:>6} {:>6}\n",
+        "{:<10} {:>8} {:>9} {:>9} {:>9} {:>7} {:>6} {:>7} {:>7} {:>6} {:>6} {:>8}\n",
         "task",
         "releases",
         "mean us",
@@ -135,25 +152,28 @@ pub fn render_summary(s: &RunSummary) -> String {
         "missed",
         "skipped",
         "resets",
-        "faults"
+        "faults",
+        "watchdog"
     );
-    for (slot, h) in s.table.tasks.iter().zip(&s.tasks) {
+    for t in &s.tasks {
         out += &format!(
-            "{:<10} {:>8} {:>9.1} {:>9.1} {:>9} {:>7} {:>6} {:>7} {:>7} {:>6} {:>6}\n",
-            slot.name,
-            h.releases,
-            h.exec.mean_ns() as f64 / 1e3,
-            h.exec.max_ns as f64 / 1e3,
-            slot.budget_ns / 1000,
-            h.overruns.budget,
-            h.overruns.frame,
-            h.overruns.missed,
-            h.skipped,
-            h.resets,
-            h.faults,
+            "{:<10} {:>8} {:>9.1} {:>9.1} {:>9} {:>7} {:>6} {:>7} {:>7} {:>6} {:>6} {:>8}\n",
+            t.name,
+            t.releases,
+            t.exec_mean_us,
+            t.exec_max_us,
+            t.budget_us,
+            t.overruns_budget,
+            t.overruns_frame,
+            t.overruns_missed,
+            t.skipped,
+            t.resets,
+            t.faults,
+            t.watchdog_misses,
         );
     }
     out += "budget! = over budget, frame! = ran into the next frame, missed = releases in \
-            frames the executive missed whole\n";
+            frames the executive missed whole, watchdog = checks that found the task released \
+            but not completing a step\n";
     out
 }

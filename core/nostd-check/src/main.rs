@@ -6,9 +6,11 @@
 use core::cell::Cell;
 use core::panic::PanicInfo;
 use skyframe_core::comm::{Queue, Sink};
-use skyframe_core::executive::{
-    Clock, Executive, FrameRecord, Task, TaskContext, TaskFault,
-};
+use skyframe_core::executive::{Clock, Executive, FrameRecord, Task, TaskContext, TaskFault};
+use skyframe_core::link::auth::{CommandGate, GateConfig, LinkKey};
+use skyframe_core::link::frame::{Envelope, MAX_DATAGRAM_LEN, encode_datagram};
+use skyframe_core::link::messages::{Command, Message};
+use skyframe_core::link::params::ParamTable;
 use skyframe_core::schedule::{SHIPPED, SHIPPED_TASKS};
 
 // On a hosted target the C library still starts the process and provides memcpy/memset.
@@ -67,5 +69,42 @@ pub extern "C" fn main(_argc: i32, _argv: *const *const u8) -> i32 {
         }
     }
     executive.shutdown(&mut tasks);
-    if frames == SHIPPED.minor_frames() { 0 } else { 2 }
+    if frames != SHIPPED.minor_frames() {
+        return 2;
+    }
+    if stop_command_passes_the_gate() { 0 } else { 3 }
+}
+
+/// The link without std: sign a Stop as a ground station would, check it as the vehicle does.
+fn stop_command_passes_the_gate() -> bool {
+    let key = LinkKey::new([7; 32]);
+    let envelope = Envelope {
+        vehicle_id: 1,
+        sender_id: 1,
+        run_id: 42,
+        sequence: 1,
+        t_ns: 1_000,
+    };
+    let mut datagram = [0u8; MAX_DATAGRAM_LEN];
+    let Ok(len) = encode_datagram(
+        &envelope,
+        &Message::Command(Command::Stop),
+        Some(&key),
+        &mut datagram,
+    ) else {
+        return false;
+    };
+    let mut gate = CommandGate::new(
+        key,
+        GateConfig {
+            vehicle_id: 1,
+            run_id: 42,
+            task_count: SHIPPED_TASKS,
+        },
+    );
+    let params = ParamTable::new();
+    matches!(
+        datagram.get(..len).map(|d| gate.accept(d, 2_000, &params)),
+        Some(Ok(accepted)) if accepted.command == Command::Stop
+    )
 }

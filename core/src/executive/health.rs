@@ -121,6 +121,10 @@ pub struct FrameStats {
 pub struct HealthBoard {
     tasks: [TaskHealth; MAX_TASKS],
     alive: [Cell<bool>; MAX_TASKS],
+    /// Log records each task could not hand to its log ring (full).
+    log_dropped: [Cell<u32>; MAX_TASKS],
+    /// What a task reports is wrong with what it depends on (a stale device), if anything.
+    degraded: [Cell<Option<&'static str>>; MAX_TASKS],
     count: usize,
     pub frames: FrameStats,
 }
@@ -130,6 +134,8 @@ impl HealthBoard {
         Self {
             tasks: [TaskHealth::default(); MAX_TASKS],
             alive: [const { Cell::new(false) }; MAX_TASKS],
+            log_dropped: [const { Cell::new(0) }; MAX_TASKS],
+            degraded: [const { Cell::new(None) }; MAX_TASKS],
             count: count.min(MAX_TASKS),
             frames: FrameStats::default(),
         }
@@ -156,6 +162,30 @@ impl HealthBoard {
     /// The watchdog's check: was the task alive since the last check? Clears the flag.
     pub fn take_alive(&self, index: usize) -> bool {
         self.alive.get(index).is_some_and(|a| a.replace(false))
+    }
+
+    /// Counts a log record task `index` had to drop (its ring was full).
+    pub fn note_log_drop(&self, index: usize) {
+        if let Some(c) = self.log_dropped.get(index) {
+            c.set(c.get().saturating_add(1));
+        }
+    }
+
+    pub fn log_dropped(&self, index: usize) -> u32 {
+        self.log_dropped.get(index).map_or(0, Cell::get)
+    }
+
+    /// A task says what is wrong with its inputs (`Some("device stale")`) or that all is well
+    /// again (`None`). The task keeps running; people and the ground station see why its
+    /// data may be old.
+    pub fn set_degraded(&self, index: usize, reason: Option<&'static str>) {
+        if let Some(c) = self.degraded.get(index) {
+            c.set(reason);
+        }
+    }
+
+    pub fn degraded(&self, index: usize) -> Option<&'static str> {
+        self.degraded.get(index).and_then(Cell::get)
     }
 
     pub(crate) fn mark_alive(&self, index: usize) {

@@ -62,6 +62,7 @@ pub struct Executive<C: Clock> {
     /// The next frame to run, counted since the start.
     next_frame: u64,
     started: bool,
+    log_time_origin_ns: u64,
 }
 
 impl<C: Clock> Executive<C> {
@@ -75,7 +76,14 @@ impl<C: Clock> Executive<C> {
             origin_ns: 0,
             next_frame: 0,
             started: false,
+            log_time_origin_ns: 0,
         }
+    }
+
+    /// Log TIME of clock zero: the wall clock at start on a vehicle (the shell knows it),
+    /// 0 in a simulation.
+    pub fn set_log_time_origin(&mut self, ns: u64) {
+        self.log_time_origin_ns = ns;
     }
 
     /// Injects overruns (tests, simulator scenarios, `--inject-overrun`).
@@ -144,6 +152,7 @@ impl<C: Clock> Executive<C> {
             frame,
             task: index,
             health: &self.health,
+            log_time_origin_ns: self.log_time_origin_ns,
         }
     }
 

@@ -26,6 +26,15 @@ pub struct TaskContext<'a> {
     pub task: usize,
     /// Every task's health; a watchdog takes the alive flags through it.
     pub health: &'a HealthBoard,
+    /// Log TIME of `now_ns = 0`: the wall clock at start on a vehicle, 0 in a simulation.
+    pub log_time_origin_ns: u64,
+}
+
+impl TaskContext<'_> {
+    /// The TIME to stamp on a log record made now (`log-format.md`).
+    pub fn log_time_ns(&self) -> u64 {
+        self.log_time_origin_ns.saturating_add(self.now_ns)
+    }
 }
 
 /// A periodic task: init → step (once per release) → recover → shutdown.

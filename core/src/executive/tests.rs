@@ -166,6 +166,30 @@ impl<'a> Harness<'a> {
     }
 }
 
+/// `(task, frame)` of every call of one kind (`"step"`, `"init"`, …), in order.
+fn calls(journal: &Journal, what: &str) -> Vec<(&'static str, u64)> {
+    journal
+        .borrow()
+        .iter()
+        .filter(|(_, w, _)| *w == what)
+        .map(|(name, _, frame)| (*name, *frame))
+        .collect()
+}
+
+/// The table's three tasks, named as in `TASKS`, with the given step costs.
+fn three<'a>(
+    clock: &'a MockClock,
+    journal: &'a Journal,
+    costs: [fn(u64) -> u64; 3],
+) -> [Scripted<'a>; 3] {
+    let [fast, slow, odd] = costs;
+    [
+        Scripted::new("fast", clock, journal, fast),
+        Scripted::new("slow", clock, journal, slow),
+        Scripted::new("odd", clock, journal, odd),
+    ]
+}
+
 fn cheap(_: u64) -> u64 {
     100 * US
 }
@@ -174,21 +198,14 @@ fn cheap(_: u64) -> u64 {
 fn frames_release_the_table_tasks_in_order() {
     let clock = MockClock::default();
     let journal = Journal::default();
-    let mut fast = Scripted::new("fast", &clock, &journal, cheap);
-    let mut slow = Scripted::new("slow", &clock, &journal, cheap);
-    let mut odd = Scripted::new("odd", &clock, &journal, cheap);
-    let mut tasks: [&mut dyn Task; 3] = [&mut fast, &mut slow, &mut odd];
+    let mut scripted = three(&clock, &journal, [cheap, cheap, cheap]);
+    let mut tasks = scripted.each_mut().map(|t| t as &mut dyn Task);
     let mut h = Harness::new(&clock);
     h.exec.start(&mut tasks, 5 * MS).expect("start");
     for _ in 0..4 {
         h.frame(&mut tasks, 0);
     }
-    let steps: Vec<_> = journal
-        .borrow()
-        .iter()
-        .filter(|(_, what, _)| *what == "step")
-        .map(|(name, _, frame)| (*name, *frame))
-        .collect();
+    let steps = calls(&journal, "step");
     assert_eq!(
         steps,
         [
@@ -222,12 +239,18 @@ fn frames_release_the_table_tasks_in_order() {
 fn budget_overrun_with_log_policy_is_counted_and_the_task_keeps_running() {
     let clock = MockClock::default();
     let journal = Journal::default();
-    let mut fast = Scripted::new("fast", &clock, &journal, |f| {
-        if f == 1 { 1500 * US } else { 100 * US }
-    });
-    let mut slow = Scripted::new("slow", &clock, &journal, cheap);
-    let mut odd = Scripted::new("odd", &clock, &journal, cheap);
-    let mut tasks: [&mut dyn Task; 3] = [&mut fast, &mut slow, &mut odd];
+    let mut scripted = three(
+        &clock,
+        &journal,
+        [
+            |f| {
+                if f == 1 { 1500 * US } else { 100 * US }
+            },
+            cheap,
+            cheap,
+        ],
+    );
+    let mut tasks = scripted.each_mut().map(|t| t as &mut dyn Task);
     let mut h = Harness::new(&clock);
     h.exec.start(&mut tasks, 0).expect("start");
     h.frame(&mut tasks, 0);
@@ -250,12 +273,18 @@ fn budget_overrun_with_log_policy_is_counted_and_the_task_keeps_running() {
 fn skip_policy_drops_exactly_the_next_release() {
     let clock = MockClock::default();
     let journal = Journal::default();
-    let mut fast = Scripted::new("fast", &clock, &journal, cheap);
-    let mut slow = Scripted::new("slow", &clock, &journal, |f| {
-        if f == 0 { 2500 * US } else { 100 * US }
-    });
-    let mut odd = Scripted::new("odd", &clock, &journal, cheap);
-    let mut tasks: [&mut dyn Task; 3] = [&mut fast, &mut slow, &mut odd];
+    let mut scripted = three(
+        &clock,
+        &journal,
+        [
+            cheap,
+            |f| {
+                if f == 0 { 2500 * US } else { 100 * US }
+            },
+            cheap,
+        ],
+    );
+    let mut tasks = scripted.each_mut().map(|t| t as &mut dyn Task);
     let mut h = Harness::new(&clock);
     h.exec.start(&mut tasks, 0).expect("start");
     let records: Vec<_> = (0..6).map(|_| h.frame(&mut tasks, 0)).collect();
@@ -275,12 +304,12 @@ fn skip_policy_drops_exactly_the_next_release() {
 fn reset_policy_runs_recover_then_init_before_the_next_release() {
     let clock = MockClock::default();
     let journal = Journal::default();
-    let mut fast = Scripted::new("fast", &clock, &journal, cheap);
-    let mut slow = Scripted::new("slow", &clock, &journal, cheap);
-    let mut odd = Scripted::new("odd", &clock, &journal, |f| {
-        if f == 1 { 3 * MS } else { 100 * US }
-    });
-    let mut tasks: [&mut dyn Task; 3] = [&mut fast, &mut slow, &mut odd];
+    let mut scripted = three(
+        &clock,
+        &journal,
+        [cheap, cheap, |f| if f == 1 { 3 * MS } else { 100 * US }],
+    );
+    let mut tasks = scripted.each_mut().map(|t| t as &mut dyn Task);
     let mut h = Harness::new(&clock);
     h.exec.start(&mut tasks, 0).expect("start");
     let records: Vec<_> = (0..4).map(|_| h.frame(&mut tasks, 0)).collect();
@@ -312,14 +341,20 @@ fn frame_overrun_is_charged_to_the_task_running_at_the_deadline_and_delays_the_n
     let clock = MockClock::default();
     let journal = Journal::default();
     // fast takes 6 ms then slow 5 ms in frame 0: the 10 ms deadline passes inside slow.
-    let mut fast = Scripted::new("fast", &clock, &journal, |f| {
-        if f == 0 { 6 * MS } else { 100 * US }
-    });
-    let mut slow = Scripted::new("slow", &clock, &journal, |f| {
-        if f == 0 { 5 * MS } else { 100 * US }
-    });
-    let mut odd = Scripted::new("odd", &clock, &journal, cheap);
-    let mut tasks: [&mut dyn Task; 3] = [&mut fast, &mut slow, &mut odd];
+    let mut scripted = three(
+        &clock,
+        &journal,
+        [
+            |f| {
+                if f == 0 { 6 * MS } else { 100 * US }
+            },
+            |f| {
+                if f == 0 { 5 * MS } else { 100 * US }
+            },
+            cheap,
+        ],
+    );
+    let mut tasks = scripted.each_mut().map(|t| t as &mut dyn Task);
     let mut h = Harness::new(&clock);
     h.exec.start(&mut tasks, 0).expect("start");
     let r0 = h.frame(&mut tasks, 0);
@@ -340,10 +375,8 @@ fn frame_overrun_is_charged_to_the_task_running_at_the_deadline_and_delays_the_n
 fn late_start_beyond_threshold_is_flagged_but_not_below_it() {
     let clock = MockClock::default();
     let journal = Journal::default();
-    let mut fast = Scripted::new("fast", &clock, &journal, cheap);
-    let mut slow = Scripted::new("slow", &clock, &journal, cheap);
-    let mut odd = Scripted::new("odd", &clock, &journal, cheap);
-    let mut tasks: [&mut dyn Task; 3] = [&mut fast, &mut slow, &mut odd];
+    let mut scripted = three(&clock, &journal, [cheap, cheap, cheap]);
+    let mut tasks = scripted.each_mut().map(|t| t as &mut dyn Task);
     let mut h = Harness::new(&clock);
     h.exec.start(&mut tasks, 0).expect("start");
     let on_time = h.frame(&mut tasks, 900 * US);
@@ -359,10 +392,8 @@ fn late_start_beyond_threshold_is_flagged_but_not_below_it() {
 fn whole_missed_frames_are_skipped_and_their_releases_counted() {
     let clock = MockClock::default();
     let journal = Journal::default();
-    let mut fast = Scripted::new("fast", &clock, &journal, cheap);
-    let mut slow = Scripted::new("slow", &clock, &journal, cheap);
-    let mut odd = Scripted::new("odd", &clock, &journal, cheap);
-    let mut tasks: [&mut dyn Task; 3] = [&mut fast, &mut slow, &mut odd];
+    let mut scripted = three(&clock, &journal, [cheap, cheap, cheap]);
+    let mut tasks = scripted.each_mut().map(|t| t as &mut dyn Task);
     let mut h = Harness::new(&clock);
     h.exec.start(&mut tasks, 0).expect("start");
     h.frame(&mut tasks, 0);
@@ -390,11 +421,9 @@ fn whole_missed_frames_are_skipped_and_their_releases_counted() {
 fn a_failing_step_is_counted_and_reset() {
     let clock = MockClock::default();
     let journal = Journal::default();
-    let mut fast = Scripted::new("fast", &clock, &journal, cheap);
-    fast.fail_step_in_frame = Some(1);
-    let mut slow = Scripted::new("slow", &clock, &journal, cheap);
-    let mut odd = Scripted::new("odd", &clock, &journal, cheap);
-    let mut tasks: [&mut dyn Task; 3] = [&mut fast, &mut slow, &mut odd];
+    let mut scripted = three(&clock, &journal, [cheap, cheap, cheap]);
+    scripted[0].fail_step_in_frame = Some(1);
+    let mut tasks = scripted.each_mut().map(|t| t as &mut dyn Task);
     let mut h = Harness::new(&clock);
     h.exec.start(&mut tasks, 0).expect("start");
     for _ in 0..3 {
@@ -411,11 +440,9 @@ fn a_failing_step_is_counted_and_reset() {
 fn failed_init_is_retried_at_each_release_and_the_task_is_not_stepped_meanwhile() {
     let clock = MockClock::default();
     let journal = Journal::default();
-    let mut fast = Scripted::new("fast", &clock, &journal, cheap);
-    fast.fail_init_times = 2;
-    let mut slow = Scripted::new("slow", &clock, &journal, cheap);
-    let mut odd = Scripted::new("odd", &clock, &journal, cheap);
-    let mut tasks: [&mut dyn Task; 3] = [&mut fast, &mut slow, &mut odd];
+    let mut scripted = three(&clock, &journal, [cheap, cheap, cheap]);
+    scripted[0].fail_init_times = 2;
+    let mut tasks = scripted.each_mut().map(|t| t as &mut dyn Task);
     let mut h = Harness::new(&clock);
     h.exec.start(&mut tasks, 0).expect("start");
     assert!(!h.health(0).initialised);
@@ -434,10 +461,8 @@ fn failed_init_is_retried_at_each_release_and_the_task_is_not_stepped_meanwhile(
 fn injected_overrun_hits_only_the_given_frames() {
     let clock = MockClock::default();
     let journal = Journal::default();
-    let mut fast = Scripted::new("fast", &clock, &journal, cheap);
-    let mut slow = Scripted::new("slow", &clock, &journal, cheap);
-    let mut odd = Scripted::new("odd", &clock, &journal, cheap);
-    let mut tasks: [&mut dyn Task; 3] = [&mut fast, &mut slow, &mut odd];
+    let mut scripted = three(&clock, &journal, [cheap, cheap, cheap]);
+    let mut tasks = scripted.each_mut().map(|t| t as &mut dyn Task);
     let mut h = Harness::new(&clock);
     let mut plan = FaultPlan::new();
     plan.push(OverrunInjection {
@@ -480,10 +505,8 @@ fn a_full_sink_drops_the_record_and_counts_it() {
     }
     let clock = MockClock::default();
     let journal = Journal::default();
-    let mut fast = Scripted::new("fast", &clock, &journal, cheap);
-    let mut slow = Scripted::new("slow", &clock, &journal, cheap);
-    let mut odd = Scripted::new("odd", &clock, &journal, cheap);
-    let mut tasks: [&mut dyn Task; 3] = [&mut fast, &mut slow, &mut odd];
+    let mut scripted = three(&clock, &journal, [cheap, cheap, cheap]);
+    let mut tasks = scripted.each_mut().map(|t| t as &mut dyn Task);
     let mut exec = Executive::new(&TABLE, &clock);
     exec.start(&mut tasks, 0).expect("start");
     exec.run_frame(&mut tasks, &mut Full);
@@ -495,10 +518,8 @@ fn a_full_sink_drops_the_record_and_counts_it() {
 fn run_until_sleeps_to_each_release_and_shutdown_reaches_every_task() {
     let clock = MockClock::default();
     let journal = Journal::default();
-    let mut fast = Scripted::new("fast", &clock, &journal, cheap);
-    let mut slow = Scripted::new("slow", &clock, &journal, cheap);
-    let mut odd = Scripted::new("odd", &clock, &journal, cheap);
-    let mut tasks: [&mut dyn Task; 3] = [&mut fast, &mut slow, &mut odd];
+    let mut scripted = three(&clock, &journal, [cheap, cheap, cheap]);
+    let mut tasks = scripted.each_mut().map(|t| t as &mut dyn Task);
     let mut exec = Executive::new(&TABLE, &clock);
     let mut records = Recorder(Vec::new());
     exec.start(&mut tasks, 0).expect("start");
@@ -511,11 +532,9 @@ fn run_until_sleeps_to_each_release_and_shutdown_reaches_every_task() {
             .all(|r| r.start_latency_ns == 0 && r.flags == 0)
     );
     exec.shutdown(&mut tasks);
-    let shut: Vec<_> = journal
-        .borrow()
-        .iter()
-        .filter(|(_, what, _)| *what == "shutdown")
-        .map(|(n, _, _)| *n)
+    let shut: Vec<_> = calls(&journal, "shutdown")
+        .into_iter()
+        .map(|(n, _)| n)
         .collect();
     assert_eq!(shut, ["fast", "slow", "odd"]);
     assert!(!exec.health().task(0).expect("task").running);

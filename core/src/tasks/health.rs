@@ -96,26 +96,10 @@ impl Task for HealthTask<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::comm::Sink;
-    use crate::executive::{Clock, Executive, FrameRecord};
+    use crate::executive::Executive;
     use crate::schedule::{FrameTable, OverrunPolicy, TaskSlot};
+    use crate::tasks::test_support::{MS, SetClock, run_frames};
     use core::cell::Cell;
-
-    const MS: u64 = 1_000_000;
-
-    struct Tick(Cell<u64>);
-    impl Clock for Tick {
-        fn now_ns(&self) -> u64 {
-            self.0.get()
-        }
-    }
-
-    struct Nothing;
-    impl Sink<FrameRecord> for Nothing {
-        fn try_send(&mut self, _: FrameRecord) -> Result<(), FrameRecord> {
-            Ok(())
-        }
-    }
 
     /// Completes its steps only while `healthy` is set; otherwise its step fails.
     struct Flaky<'a>(&'a Cell<bool>);
@@ -169,7 +153,7 @@ mod tests {
 
     #[test]
     fn watchdog_counts_released_tasks_that_never_complete_and_ignores_ones_not_released() {
-        let clock = Tick(Cell::new(0));
+        let clock = SetClock(Cell::new(0));
         let imu_ok = Cell::new(true);
         let gps_ok = Cell::new(true);
         let slot = LatestSlot::new();
@@ -180,12 +164,7 @@ mod tests {
         {
             let mut tasks: [&mut dyn Task; 3] = [&mut imu, &mut gps, &mut health];
             exec.start(&mut tasks, 0).expect("start");
-            let mut run = |frames: u64| {
-                for _ in 0..frames {
-                    clock.0.set(exec.next_release_ns());
-                    exec.run_frame(&mut tasks, &mut Nothing);
-                }
-            };
+            let mut run = |frames: u64| run_frames(&mut exec, &clock, &mut tasks, frames);
             run(5); // frames 0-4: check at frame 4, all fine (gps ran in frame 2)
             let r = slot.peek().expect("report");
             assert_eq!((r.checks, r.alive, r.stalled), (1, 0b111, 0));

@@ -1,0 +1,35 @@
+//! The binary flight log (`shared/specs/log-format.md`): formats, records, reading, printing.
+//!
+//! - [`format`]: printf format strings parsed into the fields of a data block;
+//! - [`record`]: encoding records into a caller's fixed buffer ([`LogFormat`],
+//!   [`DataBlockWriter`]);
+//! - [`reader`]: a streaming, resynchronising reader that survives any bytes;
+//! - [`printf`]: a data block's text exactly as C's `printf` prints it;
+//! - [`frame_log`]: the executive's per-frame timing records as a log format.
+//!
+//! Nothing here allocates, panics or blocks; the reader and renderer are meant for hosts
+//! (`skyframe-log`), the encoders for tasks.
+
+pub mod format;
+pub mod frame_log;
+pub mod printf;
+pub mod reader;
+pub mod record;
+
+pub use format::{Conversion, Field, FieldType, Flags, Format, FormatError, MAX_FIELDS};
+pub use frame_log::{
+    FrameLogFormat, decode_frame_record, encode_frame_record, frame_log_task_names,
+};
+pub use printf::{
+    ByteWrite, RenderError, Value, render_byte_array, render_byte_array_bytes, render_data_block,
+    render_data_block_bytes, render_field, render_field_bytes,
+};
+pub use reader::{Event, LogReader, Problem, ProblemKind, Record, read_slice};
+pub use record::{
+    DataBlockWriter, EncodeError, LogFormat, MAX_RECORD_LEN, Time, encode_begin_data,
+    encode_byte_array, encode_data_block, encode_end_data, encode_format_comment,
+    encode_format_definition,
+};
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,133 @@
+//! The GPS task: drains the receiver's sentences, publishes each epoch's fix for the
+//! estimator, logs it (`docs/log-streams.md`, `gps.bin`). A value the receiver did not give
+//! is logged as NaN (or the integer field's "unknown" value) so columns never shift.
+
+use super::device_status::{DEVICE_STALE, DeviceStatusLog};
+use super::task_log::TaskLog;
+use crate::comm::{LatestSlot, RecordSink};
+use crate::devices::gps::{GpsConfig, GpsFix, NmeaDecoder};
+use crate::devices::port::drain;
+use crate::devices::{Decoder, DecoderStats};
+use crate::executive::{Task, TaskContext, TaskFault};
+use crate::logfmt::format::Format;
+use crate::logfmt::record::LogFormat;
+use embedded_io::{Read, ReadReady};
+
+pub const GPS_FIX_LOG: LogFormat = LogFormat::new(
+    "%hhu,%hhu,%hhu,%.8lf,%.8lf,%.3lf,%.3f,%.3f,%.3f,%.2f,%.2f,%.2f,%.3f,%.3f,%.3f,%u",
+    "valid,quality,satellites,lat_deg,lon_deg,alt_m,vn_m_s,ve_m_s,vd_m_s,pdop,hdop,vdop,\
+     sd_n_m,sd_e_m,sd_d_m,utc_ms",
+);
+pub const FIX_INDEX: u8 = 1;
+pub const STATUS_INDEX: u8 = 2;
+
+/// "Not reported" for the small integer columns.
+pub const UNKNOWN_U8: u8 = u8::MAX;
+pub const UNKNOWN_U32: u32 = u32::MAX;
+
+/// A 10 Hz receiver sends ~450 bytes per epoch; a 100 ms step may see two epochs at once.
+pub const MAX_BYTES_PER_STEP: usize = 2048;
+
+pub struct GpsTask<'a, P, S: RecordSink> {
+    port: P,
+    decoder: NmeaDecoder,
+    log: TaskLog<S>,
+    fix_format: Format,
+    status: DeviceStatusLog,
+    fixes: &'a LatestSlot<GpsFix>,
+}
+
+impl<'a, P: Read + ReadReady, S: RecordSink> GpsTask<'a, P, S> {
+    pub fn new(port: P, log: S, config: GpsConfig, fixes: &'a LatestSlot<GpsFix>) -> Self {
+        Self {
+            port,
+            decoder: NmeaDecoder::new(config),
+            log: TaskLog::new(log),
+            fix_format: Format::EMPTY,
+            status: DeviceStatusLog::new(STATUS_INDEX),
+            fixes,
+        }
+    }
+
+    pub fn stats(&self) -> &DecoderStats {
+        self.decoder.stats()
+    }
+}
+
+fn or_nan32(v: Option<f32>) -> f32 {
+    v.unwrap_or(f32::NAN)
+}
+
+fn or_nan64(v: Option<f64>) -> f64 {
+    v.unwrap_or(f64::NAN)
+}
+
+impl<P: Read + ReadReady, S: RecordSink> Task for GpsTask<'_, P, S> {
+    fn init(&mut self, cx: &mut TaskContext<'_>) -> Result<(), TaskFault> {
+        let bad = |_| TaskFault::new("gps log format");
+        self.fix_format = self.log.declare(cx, FIX_INDEX, &GPS_FIX_LOG).map_err(bad)?;
+        self.status.declare(&mut self.log, cx).map_err(bad)?;
+        self.log.begin(cx);
+        Ok(())
+    }
+
+    fn step(&mut self, cx: &mut TaskContext<'_>) -> Result<(), TaskFault> {
+        let cx = &*cx;
+        let Self {
+            port,
+            decoder,
+            log,
+            fix_format,
+            fixes,
+            ..
+        } = self;
+        let drained = drain(
+            port,
+            decoder,
+            cx.now_ns,
+            MAX_BYTES_PER_STEP,
+            &mut |fix: GpsFix| {
+                fixes.publish(fix);
+                let [vn, ve, vd] = fix.velocity_ned_mps;
+                let [sd_n, sd_e, sd_d] = fix.position_sd_m;
+                log.record(cx, FIX_INDEX, fix_format, |w| {
+                    w.u8(u8::from(fix.valid))
+                        .u8(fix.quality.map_or(UNKNOWN_U8, |q| q.gga_code()))
+                        .u8(fix.satellites.unwrap_or(UNKNOWN_U8))
+                        .f64(or_nan64(fix.latitude_deg))
+                        .f64(or_nan64(fix.longitude_deg))
+                        .f64(or_nan64(fix.altitude_msl_m))
+                        .f32(or_nan32(vn))
+                        .f32(or_nan32(ve))
+                        .f32(or_nan32(vd))
+                        .f32(or_nan32(fix.pdop))
+                        .f32(or_nan32(fix.hdop))
+                        .f32(or_nan32(fix.vdop))
+                        .f32(or_nan32(sd_n))
+                        .f32(or_nan32(sd_e))
+                        .f32(or_nan32(sd_d))
+                        .u32(fix.utc_time_ms.unwrap_or(UNKNOWN_U32))
+                });
+            },
+        );
+        let stale = self.decoder.is_stale(cx.now_ns);
+        cx.health
+            .set_degraded(cx.task, stale.then_some(DEVICE_STALE));
+        self.status
+            .maybe_log(&mut self.log, cx, self.decoder.stats(), stale, false);
+        drained
+            .map(|_| ())
+            .map_err(|_| TaskFault::new("gps port error"))
+    }
+
+    fn recover(&mut self, cx: &mut TaskContext<'_>) {
+        let stale = self.decoder.is_stale(cx.now_ns);
+        self.status
+            .maybe_log(&mut self.log, cx, self.decoder.stats(), stale, true);
+        self.log.end(cx);
+    }
+
+    fn shutdown(&mut self, cx: &mut TaskContext<'_>) {
+        self.recover(cx);
+    }
+}

@@ -1,0 +1,262 @@
+//! The servo task: the seed's order — computer commands out first, then the board's report
+//! of the pilot's sticks, switch and batteries in (thesis §4.3.2). Publishes the pilot's
+//! report for the controller, logs both directions (`docs/log-streams.md`, `servo.bin`).
+//!
+//! Until a controller publishes commands, the task still sends a frame every step, with
+//! `autopilot_ready` clear: the board keeps the pilot in control and knows the computer is
+//! alive.
+
+use super::device_status::{DEVICE_STALE, DeviceStatusLog};
+use super::task_log::TaskLog;
+use crate::comm::{LatestSlot, RecordSink, SlotReader};
+use crate::devices::port::{CommandWriter, drain};
+use crate::devices::servo::{
+    ChannelCommand, ControlMode, PILOT_CHANNELS, PilotFrame, PilotReport, ServoCommand,
+    ServoDecoder, pulse_us_to_surface, pulse_us_to_throttle,
+};
+use crate::devices::{Decoder, DecoderStats};
+use crate::executive::{Task, TaskContext, TaskFault};
+use crate::logfmt::format::Format;
+use crate::logfmt::record::LogFormat;
+use embedded_io::{Read, ReadReady, Write, WriteReady};
+
+pub const SERVO_PILOT_LOG: LogFormat = LogFormat::new(
+    "%hhu,%hu,%hu,%hu,%hu,%hu,%hu,%hu,%hu,%hhu,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f",
+    "counter,ch1_us,ch2_us,ch3_us,ch4_us,ch5_us,ch6_us,ch7_us,ch8_us,auto,aileron,elevator,\
+     throttle,rudder,batt_avionics_v,batt_servo_v",
+);
+pub const SERVO_COMMAND_LOG: LogFormat = LogFormat::new(
+    "%hhu,%.3f,%.3f,%.3f,%.3f",
+    "ready,aileron_cmd,elevator_cmd,throttle_cmd,rudder_cmd",
+);
+pub const PILOT_INDEX: u8 = 1;
+pub const COMMAND_INDEX: u8 = 2;
+pub const STATUS_INDEX: u8 = 3;
+
+/// Receiver channels of the four controls: the airframe's wiring (Futaba order: 1 aileron,
+/// 2 elevator, 3 throttle, 4 rudder). Channels 5–8 are passed through unchanged.
+pub const AILERON_CHANNEL: usize = 0;
+pub const ELEVATOR_CHANNEL: usize = 1;
+pub const THROTTLE_CHANNEL: usize = 2;
+pub const RUDDER_CHANNEL: usize = 3;
+
+pub const MAX_BYTES_PER_STEP: usize = 512;
+
+/// The four controls, normalised (`conventions.md`: surfaces in [−1, 1], throttle in [0, 1]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Controls {
+    pub aileron: f32,
+    pub elevator: f32,
+    pub throttle: f32,
+    pub rudder: f32,
+}
+
+/// What the computer wants the servos to do.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct ComputerCommand {
+    pub controls: Controls,
+    /// The controller vouches for these commands; without it the board keeps the pilot in
+    /// control.
+    pub ready: bool,
+}
+
+/// The pilot's side as the board reported it, in the controls' units.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct PilotInput {
+    pub report: PilotReport,
+    pub received_ns: u64,
+    pub sticks: Controls,
+    pub mode: ControlMode,
+}
+
+pub fn sticks_of(report: &PilotReport) -> Controls {
+    let ch = |i: usize| report.pilot_us.get(i).copied().unwrap_or(0);
+    Controls {
+        aileron: pulse_us_to_surface(ch(AILERON_CHANNEL)),
+        elevator: pulse_us_to_surface(ch(ELEVATOR_CHANNEL)),
+        throttle: pulse_us_to_throttle(ch(THROTTLE_CHANNEL)),
+        rudder: pulse_us_to_surface(ch(RUDDER_CHANNEL)),
+    }
+}
+
+/// The channel commands for `command`, with the pilot's last channels 5–8 passed through.
+fn channels(
+    command: &ComputerCommand,
+    pilot: Option<&PilotReport>,
+) -> [ChannelCommand; PILOT_CHANNELS] {
+    let c = command.controls;
+    let mut out = [ChannelCommand::Surface(0.0); PILOT_CHANNELS];
+    for (i, slot) in out.iter_mut().enumerate() {
+        *slot = match i {
+            AILERON_CHANNEL => ChannelCommand::Surface(c.aileron),
+            ELEVATOR_CHANNEL => ChannelCommand::Surface(c.elevator),
+            THROTTLE_CHANNEL => ChannelCommand::Throttle(c.throttle),
+            RUDDER_CHANNEL => ChannelCommand::Surface(c.rudder),
+            other => ChannelCommand::Surface(
+                pilot
+                    .and_then(|p| p.pilot_us.get(other).copied())
+                    .map_or(0.0, pulse_us_to_surface),
+            ),
+        };
+    }
+    out
+}
+
+pub struct ServoTask<'a, P, S: RecordSink> {
+    port: P,
+    decoder: ServoDecoder,
+    writer: CommandWriter,
+    log: TaskLog<S>,
+    pilot_format: Format,
+    command_format: Format,
+    status: DeviceStatusLog,
+    commands: SlotReader<'a, ComputerCommand>,
+    pilot: &'a LatestSlot<PilotInput>,
+    last_pilot: Option<PilotReport>,
+}
+
+impl<'a, P, S> ServoTask<'a, P, S>
+where
+    P: Read + ReadReady + Write + WriteReady,
+    S: RecordSink,
+{
+    pub fn new(
+        port: P,
+        log: S,
+        stale_timeout_ns: u64,
+        commands: &'a LatestSlot<ComputerCommand>,
+        pilot: &'a LatestSlot<PilotInput>,
+    ) -> Self {
+        Self {
+            port,
+            decoder: ServoDecoder::new(stale_timeout_ns),
+            writer: CommandWriter::new(),
+            log: TaskLog::new(log),
+            pilot_format: Format::EMPTY,
+            command_format: Format::EMPTY,
+            status: DeviceStatusLog::new(STATUS_INDEX),
+            commands: commands.reader(),
+            pilot,
+            last_pilot: None,
+        }
+    }
+
+    pub fn stats(&self) -> &DecoderStats {
+        self.decoder.stats()
+    }
+
+    fn send_command(&mut self, cx: &TaskContext<'_>) -> Result<(), TaskFault> {
+        let command = self.commands.read().map(|l| l.value).unwrap_or_default();
+        let frame = ServoCommand::from_channels(
+            channels(&command, self.last_pilot.as_ref()),
+            command.ready,
+        );
+        self.writer.submit_servo_command(&frame);
+        let c = command.controls;
+        self.log
+            .record(cx, COMMAND_INDEX, &self.command_format, |w| {
+                w.u8(u8::from(command.ready))
+                    .f32(c.aileron)
+                    .f32(c.elevator)
+                    .f32(c.throttle)
+                    .f32(c.rudder)
+            });
+        self.writer
+            .poll(&mut self.port)
+            .map_err(|_| TaskFault::new("servo port error"))
+    }
+}
+
+impl<P, S> Task for ServoTask<'_, P, S>
+where
+    P: Read + ReadReady + Write + WriteReady,
+    S: RecordSink,
+{
+    fn init(&mut self, cx: &mut TaskContext<'_>) -> Result<(), TaskFault> {
+        let bad = |_| TaskFault::new("servo log format");
+        self.pilot_format = self
+            .log
+            .declare(cx, PILOT_INDEX, &SERVO_PILOT_LOG)
+            .map_err(bad)?;
+        self.command_format = self
+            .log
+            .declare(cx, COMMAND_INDEX, &SERVO_COMMAND_LOG)
+            .map_err(bad)?;
+        self.status.declare(&mut self.log, cx).map_err(bad)?;
+        self.log.begin(cx);
+        Ok(())
+    }
+
+    fn step(&mut self, cx: &mut TaskContext<'_>) -> Result<(), TaskFault> {
+        let cx = &*cx;
+        self.send_command(cx)?;
+        let Self {
+            port,
+            decoder,
+            log,
+            pilot_format,
+            pilot,
+            last_pilot,
+            ..
+        } = self;
+        let drained = drain(
+            port,
+            decoder,
+            cx.now_ns,
+            MAX_BYTES_PER_STEP,
+            &mut |frame: PilotFrame| {
+                let report = frame.report;
+                let sticks = sticks_of(&report);
+                let mode = report.requested_mode();
+                *last_pilot = Some(report);
+                pilot.publish(PilotInput {
+                    report,
+                    received_ns: frame.received_ns,
+                    sticks,
+                    mode,
+                });
+                let ch = report.pilot_us;
+                log.record(cx, PILOT_INDEX, pilot_format, |w| {
+                    ch.iter()
+                        .fold(w.u8(frame.counter), |w, &us| w.u16(us))
+                        .u8(u8::from(mode == ControlMode::Auto))
+                        .f32(sticks.aileron)
+                        .f32(sticks.elevator)
+                        .f32(sticks.throttle)
+                        .f32(sticks.rudder)
+                        .f32(report.logic_battery_v)
+                        .f32(report.servo_battery_v)
+                });
+            },
+        );
+        let stale = self.decoder.is_stale(cx.now_ns);
+        cx.health
+            .set_degraded(cx.task, stale.then_some(DEVICE_STALE));
+        self.status
+            .maybe_log(&mut self.log, cx, self.decoder.stats(), stale, false);
+        drained
+            .map(|_| ())
+            .map_err(|_| TaskFault::new("servo port error"))
+    }
+
+    fn recover(&mut self, cx: &mut TaskContext<'_>) {
+        let stale = self.decoder.is_stale(cx.now_ns);
+        self.status
+            .maybe_log(&mut self.log, cx, self.decoder.stats(), stale, true);
+        self.log.end(cx);
+    }
+
+    fn shutdown(&mut self, cx: &mut TaskContext<'_>) {
+        // Last words to the board: hand the airplane back to the pilot.
+        let frame = ServoCommand::from_channels(
+            channels(&ComputerCommand::default(), self.last_pilot.as_ref()),
+            false,
+        );
+        self.writer.submit_servo_command(&frame);
+        let _ = self.writer.poll(&mut self.port);
+        self.recover(cx);
+    }
+}

@@ -1,0 +1,77 @@
+//! The executive's per-frame timing records, as a log stream in their own format (read back
+//! by `skyframe-log` and the frame-overrun report tool).
+
+use crate::logwriter::LogStream;
+use skyframe_core::executive::FrameRecord;
+use skyframe_core::logfmt::frame_log::{FrameLogFormat, encode_frame_record};
+use skyframe_core::logfmt::record::{MAX_RECORD_LEN, encode_begin_data, encode_end_data};
+use skyframe_core::schedule::FrameTable;
+
+/// Format index of the timing records in the executive's log file.
+pub const TIMING_FORMAT_INDEX: u8 = 1;
+
+pub struct TimingLog {
+    stream: LogStream,
+    format: FrameLogFormat,
+    /// Log TIME = this + the executive's clock: wall clock on a vehicle, 0 in virtual time.
+    time_origin_ns: u64,
+    buf: Vec<u8>,
+    last_t_ns: u64,
+}
+
+impl TimingLog {
+    /// Declares the format and begins the data.
+    pub fn start(
+        stream: LogStream,
+        table: &FrameTable,
+        time_origin_ns: u64,
+        t_ns: u64,
+    ) -> Result<Self, String> {
+        let format =
+            FrameLogFormat::new(table.tasks).map_err(|e| format!("timing log format: {e:?}"))?;
+        let mut log = Self {
+            stream,
+            format,
+            time_origin_ns,
+            buf: vec![0; MAX_RECORD_LEN],
+            last_t_ns: t_ns,
+        };
+        let n = log
+            .format
+            .encode_declaration(&mut log.buf, TIMING_FORMAT_INDEX)
+            .map_err(|e| format!("timing log declaration: {e:?}"))?;
+        log.push(n);
+        let n =
+            encode_begin_data(&mut log.buf, time_origin_ns + t_ns).map_err(|e| format!("{e:?}"))?;
+        log.push(n);
+        Ok(log)
+    }
+
+    fn push(&mut self, n: usize) {
+        if let Some(record) = self.buf.get(..n) {
+            self.stream.push_record(record);
+        }
+    }
+
+    /// Logs one frame; a record that does not fit the ring is counted by the stream.
+    pub fn record(&mut self, r: &FrameRecord) {
+        let t = r.release_ns + u64::from(r.start_latency_ns) + u64::from(r.work_ns);
+        self.last_t_ns = t;
+        if let Ok(n) = encode_frame_record(
+            &mut self.buf,
+            TIMING_FORMAT_INDEX,
+            self.time_origin_ns + t,
+            &self.format,
+            r,
+        ) {
+            self.push(n);
+        }
+    }
+
+    /// Ends the data (End Data at the last frame's time).
+    pub fn finish(mut self) {
+        if let Ok(n) = encode_end_data(&mut self.buf, self.time_origin_ns + self.last_t_ns) {
+            self.push(n);
+        }
+    }
+}

@@ -1,0 +1,115 @@
+//! Feeding files through the core's streaming reader, with a progress bar on a terminal.
+
+use std::fs::File;
+use std::io::{self, IsTerminal, Read};
+use std::path::{Path, PathBuf};
+
+use indicatif::{ProgressBar, ProgressStyle};
+use skyframe_core::logfmt::{Event, LogReader, Problem, ProblemKind};
+
+/// The files named on the command line, directories expanded to their files (sorted; not
+/// `*.csv`, not hidden, not recursive) — the seed's "convert every log here" batch script.
+pub fn expand(inputs: &[PathBuf]) -> Result<Vec<PathBuf>, String> {
+    let mut files = Vec::new();
+    for input in inputs {
+        if input.is_dir() {
+            let entries = std::fs::read_dir(input)
+                .map_err(|e| format!("{}: cannot list directory: {e}", input.display()))?;
+            let mut found = Vec::new();
+            for entry in entries {
+                let path = entry
+                    .map_err(|e| format!("{}: cannot list directory: {e}", input.display()))?
+                    .path();
+                let name = path.file_name().map(|n| n.to_string_lossy().into_owned());
+                let hidden = name.as_deref().is_none_or(|n| n.starts_with('.'));
+                let csv = path
+                    .extension()
+                    .is_some_and(|e| e.eq_ignore_ascii_case("csv"));
+                if path.is_file() && !hidden && !csv {
+                    found.push(path);
+                }
+            }
+            found.sort();
+            files.extend(found);
+        } else {
+            files.push(input.clone());
+        }
+    }
+    Ok(files)
+}
+
+/// A progress bar over the bytes of all files, drawn only when stderr is a terminal.
+pub fn progress_bar(files: &[PathBuf]) -> ProgressBar {
+    if !io::stderr().is_terminal() {
+        return ProgressBar::hidden();
+    }
+    let total = files
+        .iter()
+        .filter_map(|f| std::fs::metadata(f).ok())
+        .map(|m| m.len())
+        .sum();
+    let bar = ProgressBar::new(total);
+    if let Ok(style) = ProgressStyle::with_template(
+        "{spinner} [{elapsed_precise}] {wide_bar} {bytes}/{total_bytes} ({bytes_per_sec}, {eta}) {msg}",
+    ) {
+        bar.set_style(style);
+    }
+    bar
+}
+
+/// Prints a line on stderr without tearing the progress bar.
+pub fn report_line(bar: &ProgressBar, line: &str) {
+    bar.suspend(|| eprintln!("{line}"));
+}
+
+/// The stderr line of a problem.
+pub fn problem_line(path: &Path, problem: &Problem) -> String {
+    let file = path.display();
+    match problem.kind {
+        ProblemKind::NotClosedCleanly => {
+            format!("{file}: offset {}: {}", problem.offset, problem.kind)
+        }
+        kind if kind.resynchronises() => format!(
+            "{file}: offset {}: {kind}; skipped to offset {}",
+            problem.offset, problem.resume_offset
+        ),
+        kind => format!("{file}: offset {}: {kind}; record skipped", problem.offset),
+    }
+}
+
+/// Streams `path` through a fresh reader, calling `on_event` for every event in file order.
+/// Memory stays constant: the reader's window is the only buffer.
+pub fn read_file(
+    path: &Path,
+    reader: &mut LogReader,
+    bar: &ProgressBar,
+    mut on_event: impl FnMut(Event<'_>),
+) -> io::Result<()> {
+    let mut file = File::open(path)?;
+    reader.reset();
+    loop {
+        let space = reader.space();
+        if space.is_empty() {
+            // The window holds the longest record, so a drained reader always has room.
+            return Err(io::Error::other("log reader stalled with a full window"));
+        }
+        let count = loop {
+            match file.read(space) {
+                Ok(n) => break n,
+                Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,
+                Err(e) => return Err(e),
+            }
+        };
+        reader.commit(count);
+        bar.inc(count as u64);
+        if count == 0 {
+            reader.finish();
+        }
+        while let Some(event) = reader.next_event() {
+            on_event(event);
+        }
+        if count == 0 {
+            return Ok(());
+        }
+    }
+}
