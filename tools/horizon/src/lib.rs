@@ -6,6 +6,7 @@ pub mod bench;
 pub mod camera_file;
 pub mod detect;
 pub mod image_io;
+pub mod send;
 pub mod synth;
 
 /// A failure the tool reports in one line. `Input` (exit 2): the input, a file or an argument

@@ -4,10 +4,12 @@ use clap::{Parser, Subcommand, ValueEnum};
 use skyframe_horizon::camera_file::{self, CameraFile};
 use skyframe_horizon::detect::{self, CSV_HEADER, Runner, Source};
 use skyframe_horizon::image_io::{self, Y4mWriter};
+use skyframe_horizon::send::{SendArgs, Sender};
 use skyframe_horizon::synth::{Degradation, Renderer};
 use skyframe_horizon::{Error, bench};
 use std::io::Write;
 use std::path::PathBuf;
+use std::time::Instant;
 
 #[derive(Parser)]
 #[command(
@@ -49,6 +51,8 @@ enum Command {
         /// Print each frame's outcome (why no horizon) and edge count on stderr.
         #[arg(long)]
         verbose: bool,
+        #[command(flatten)]
+        send: SendArgs,
     },
     /// Render a synthetic flight with ground truth: frames, `truth.csv`
     /// (`frame,roll_deg,pitch_deg`) and `camera.toml` in DIR.
@@ -93,7 +97,8 @@ fn main() {
             output,
             annotate,
             verbose,
-        } => run_detect(input, camera, output, annotate, verbose),
+            send,
+        } => run_detect(input, camera, output, annotate, verbose, &send),
         Command::Synth {
             out,
             degradation,
@@ -117,8 +122,10 @@ fn run_detect(
     output: Option<PathBuf>,
     annotate: Option<PathBuf>,
     verbose: bool,
+    send: &SendArgs,
 ) -> Result<(), Error> {
     let camera = camera.as_deref().map(CameraFile::load).transpose()?;
+    let mut sender = Sender::open(send)?;
     if let Some(dir) = &annotate {
         std::fs::create_dir_all(dir)
             .map_err(|e| Error::input(format!("{}: {e}", dir.display())))?;
@@ -129,6 +136,7 @@ fn run_detect(
     writeln!(out, "{CSV_HEADER}").map_err(write_error)?;
     let mut runner: Option<Runner> = None;
     source.for_each(|index, image| {
+        let captured = Instant::now();
         let runner = runner.get_or_insert_with(|| {
             let camera =
                 camera.unwrap_or_else(|| camera_file::default_camera(image.width, image.height));
@@ -138,6 +146,9 @@ fn run_detect(
             .run(image)
             .map_err(|m| Error::input(format!("{}: frame {index}: {m}", input.display())))?;
         writeln!(out, "{}", detect::csv_line(index, &result)).map_err(write_error)?;
+        if let (Some(sender), Some(horizon)) = (&mut sender, &result.horizon) {
+            sender.send(horizon, captured)?;
+        }
         if verbose {
             eprintln!(
                 "frame {index}: {:?}, {} edge points, working image binned {}x",
@@ -152,6 +163,9 @@ fn run_detect(
         }
         Ok(())
     })?;
+    if let (true, Some(sender)) = (verbose, &sender) {
+        eprintln!("sent {} horizon commands", sender.sent);
+    }
     out.flush().map_err(write_error)
 }
 
