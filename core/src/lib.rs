@@ -11,7 +11,8 @@
 //!   back;
 //! - [`tasks`]: the tasks the schedule names;
 //! - [`logfmt`]: the binary flight log: encoding records, reading and printing them;
-//! - [`link`]: the vehicle–ground protocol: messages, encoding, command authentication.
+//! - [`link`]: the vehicle–ground protocol: messages, encoding, command authentication;
+//! - [`horizon`]: roll and pitch from a camera frame (edges, Hough, sky/ground validation).
 //!
 //! The OS side (threads, files, sockets, timers) lives in `skyframe-shell` and the
 //! `platform-*` crates, behind the traits in [`executive::clock`] and [`comm`].
@@ -25,6 +26,7 @@ pub mod facade;
 pub mod comm;
 pub mod devices;
 pub mod executive;
+pub mod horizon;
 pub mod link;
 pub mod logfmt;
 pub mod schedule;

@@ -1,0 +1,388 @@
+//! Second half: Hough voting restricted by gradient direction, local maxima as candidates,
+//! least-squares refinement, and sky/ground validation of each candidate.
+//!
+//! Lines are `sin a · x + cos a · y = rho` in normalised undistorted coordinates with `a` over
+//! the full circle: the normal points to the brighter side, so the two edges of a stripe (and
+//! the light and dark borders of a road) vote in different cells from each other.
+
+use super::edges::{EdgePoint, Sample};
+
+/// Angle bins over the full circle (1° each).
+pub const ANGLE_BINS: usize = 360;
+pub(crate) const ANGLE_STEP: f32 = 2.0 * core::f32::consts::PI / ANGLE_BINS as f32;
+
+/// Wraps an angle to (−π, π].
+pub(crate) fn wrap_angle(a: f32) -> f32 {
+    use core::f32::consts::PI;
+    let mut a = libm::fmodf(a + PI, 2.0 * PI);
+    if a < 0.0 {
+        a += 2.0 * PI;
+    }
+    a - PI
+}
+
+/// Bin of an angle in radians (any value).
+#[inline]
+pub(crate) fn angle_bin(a: f32) -> usize {
+    let b = libm::floorf(a / ANGLE_STEP + 0.5) as i64;
+    b.rem_euclid(ANGLE_BINS as i64) as usize
+}
+
+/// The sin/cos tables of the angle bins.
+pub(crate) struct Tables {
+    pub sin: [f32; ANGLE_BINS],
+    pub cos: [f32; ANGLE_BINS],
+}
+
+impl Tables {
+    pub fn new() -> Self {
+        let mut sin = [0.0; ANGLE_BINS];
+        let mut cos = [0.0; ANGLE_BINS];
+        for (i, (s, c)) in sin.iter_mut().zip(cos.iter_mut()).enumerate() {
+            let a = i as f32 * ANGLE_STEP;
+            *s = libm::sinf(a);
+            *c = libm::cosf(a);
+        }
+        Tables { sin, cos }
+    }
+}
+
+/// Quantisation of `rho`: `rho_half` bins either side of zero, `step` wide (normalised units).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct RhoAxis {
+    pub step: f32,
+    pub half: usize,
+}
+
+impl RhoAxis {
+    pub fn bins(&self) -> usize {
+        2 * self.half + 1
+    }
+
+    #[inline]
+    pub fn index(&self, rho: f32) -> Option<usize> {
+        let f = rho / self.step + self.half as f32 + 0.5;
+        (f >= 0.0 && f < self.bins() as f32).then_some(f as usize)
+    }
+
+    pub fn value(&self, index: usize) -> f32 {
+        (index as f32 - self.half as f32) * self.step
+    }
+}
+
+/// Each point votes for the lines through it whose normal is within `window` bins of its
+/// gradient direction: O(N·(2w+1)) instead of the O(N·T) of a plain Hough transform, and
+/// noise, whose gradient directions are random, spreads its votes thin.
+pub(crate) fn vote(
+    edges: &[EdgePoint],
+    tables: &Tables,
+    rho: RhoAxis,
+    window: usize,
+    accumulator: &mut [u16],
+) {
+    let bins = rho.bins();
+    accumulator.fill(0);
+    let inverse_step = 1.0 / rho.step;
+    let offset = rho.half as f32 + 0.5;
+    for point in edges {
+        let centre = angle_bin(point.normal_angle);
+        for k in 0..=2 * window {
+            let bin = (centre + ANGLE_BINS + k - window) % ANGLE_BINS;
+            let (Some(&s), Some(&c)) = (tables.sin.get(bin), tables.cos.get(bin)) else {
+                continue;
+            };
+            let f = (point.x * s + point.y * c) * inverse_step + offset;
+            if f < 0.0 {
+                continue;
+            }
+            let r = f as usize;
+            if r >= bins {
+                continue;
+            }
+            if let Some(cell) = accumulator.get_mut(bin * bins + r) {
+                *cell = cell.saturating_add(1);
+            }
+        }
+    }
+}
+
+/// A Hough cell: angle bin, rho bin and its votes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub(crate) struct Peak {
+    pub angle: usize,
+    pub rho: usize,
+    pub votes: u16,
+}
+
+/// Largest candidate list the detector keeps.
+pub const MAX_CANDIDATES: usize = 16;
+
+/// The strongest local maxima (3×3, angle wrapping around) with at least `min_votes`,
+/// strongest first, into `out`; returns how many.
+pub(crate) fn find_peaks(
+    accumulator: &[u16],
+    rho: RhoAxis,
+    min_votes: u16,
+    out: &mut [Peak],
+) -> usize {
+    let bins = rho.bins();
+    let global_max = accumulator.iter().copied().max().unwrap_or(0);
+    // Peaks under a fifth of the strongest are too short to be the horizon and only cost time.
+    let threshold = min_votes.max(global_max / 5).max(1);
+    let mut count = 0usize;
+    let cell = |a: usize, r: usize| -> u16 { accumulator.get(a * bins + r).copied().unwrap_or(0) };
+    for (a, row) in accumulator.chunks_exact(bins).enumerate() {
+        // Most angle rows hold nothing near the threshold: one vectorised max skips them.
+        if row.iter().copied().max().unwrap_or(0) < threshold {
+            continue;
+        }
+        for (r, &v) in row.iter().enumerate() {
+            if v < threshold {
+                continue;
+            }
+            let (prev, next) = ((a + ANGLE_BINS - 1) % ANGLE_BINS, (a + 1) % ANGLE_BINS);
+            let r_lo = r.saturating_sub(1);
+            let r_hi = (r + 1).min(bins - 1);
+            // Strictly above cells that come before, at least equal to those after: one
+            // winner per plateau.
+            let mut is_peak = true;
+            for (na, nr) in [
+                (prev, r_lo),
+                (prev, r),
+                (prev, r_hi),
+                (a, r_lo),
+                (a, r_hi),
+                (next, r_lo),
+                (next, r),
+                (next, r_hi),
+            ] {
+                if na == a && nr == r {
+                    continue;
+                }
+                let n = cell(na, nr);
+                let before = (na, nr) < (a, r);
+                if n > v || (before && n == v) {
+                    is_peak = false;
+                    break;
+                }
+            }
+            if !is_peak {
+                continue;
+            }
+            insert_peak(
+                out,
+                &mut count,
+                Peak {
+                    angle: a,
+                    rho: r,
+                    votes: v,
+                },
+            );
+        }
+    }
+    count
+}
+
+/// Inserts into a list sorted by votes (descending), dropping the weakest when full.
+pub(crate) fn insert_peak(out: &mut [Peak], count: &mut usize, peak: Peak) {
+    let capacity = out.len();
+    if capacity == 0 {
+        return;
+    }
+    let mut position = *count;
+    while position > 0 && out.get(position - 1).is_some_and(|p| p.votes < peak.votes) {
+        position -= 1;
+    }
+    if position >= capacity {
+        return;
+    }
+    let end = (*count).min(capacity - 1);
+    if let Some(tail) = out.get_mut(position..=end) {
+        tail.rotate_right(1);
+    }
+    if let Some(slot) = out.get_mut(position) {
+        *slot = peak;
+    }
+    *count = (*count + 1).min(capacity);
+}
+
+/// The strongest cell within `angle_window` bins and `rho_window` bins of a line.
+pub(crate) fn peak_near(
+    accumulator: &[u16],
+    rho: RhoAxis,
+    angle: usize,
+    rho_index: usize,
+    angle_window: usize,
+    rho_window: usize,
+) -> Option<Peak> {
+    let bins = rho.bins();
+    let mut best: Option<Peak> = None;
+    let angle_window = angle_window.min(ANGLE_BINS / 4);
+    for k in 0..=2 * angle_window {
+        let a = (angle % ANGLE_BINS + ANGLE_BINS + k - angle_window) % ANGLE_BINS;
+        let lo = rho_index.saturating_sub(rho_window);
+        let hi = rho_index.saturating_add(rho_window).min(bins - 1);
+        let Some(row) = accumulator.get(a * bins + lo..=a * bins + hi) else {
+            continue;
+        };
+        for (i, &v) in row.iter().enumerate() {
+            if best.is_none_or(|b| v > b.votes) {
+                best = Some(Peak {
+                    angle: a,
+                    rho: lo + i,
+                    votes: v,
+                });
+            }
+        }
+    }
+    best
+}
+
+/// A line `sin(angle)·x + cos(angle)·y = rho`, normal towards the brighter side.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Line {
+    pub angle: f32,
+    pub rho: f32,
+}
+
+impl Line {
+    pub fn normal(&self) -> (f32, f32) {
+        (libm::sinf(self.angle), libm::cosf(self.angle))
+    }
+}
+
+/// Refines a Hough line by total least squares on the edge points near it whose direction
+/// agrees, tightening the band each pass. Returns the line and its inlier count, or `None`
+/// when too few points support it to fit.
+pub(crate) fn refine(
+    edges: &[EdgePoint],
+    start: Line,
+    bands: &[f32],
+    max_angle_difference: f32,
+) -> Option<(Line, usize)> {
+    let mut line = start;
+    let mut inliers = 0usize;
+    for &band in bands {
+        let (nx, ny) = line.normal();
+        // Sums relative to the foot of the normal, so f32 keeps its precision.
+        let (ox, oy) = (nx * line.rho, ny * line.rho);
+        let (mut n, mut sx, mut sy, mut sxx, mut sxy, mut syy) = (0usize, 0.0, 0.0, 0.0, 0.0, 0.0);
+        for p in edges {
+            let distance = p.x * nx + p.y * ny - line.rho;
+            if libm::fabsf(distance) > band {
+                continue;
+            }
+            if libm::fabsf(wrap_angle(p.normal_angle - line.angle)) > max_angle_difference {
+                continue;
+            }
+            let (dx, dy) = (p.x - ox, p.y - oy);
+            n += 1;
+            sx += dx;
+            sy += dy;
+            sxx += dx * dx;
+            sxy += dx * dy;
+            syy += dy * dy;
+        }
+        if n < 8 {
+            return None;
+        }
+        let count = n as f32;
+        let (mx, my) = (sx / count, sy / count);
+        let cxx = sxx / count - mx * mx;
+        let cxy = sxy / count - mx * my;
+        let cyy = syy / count - my * my;
+        // Direction of largest spread; the normal is perpendicular, kept on the bright side.
+        let direction = 0.5 * libm::atan2f(2.0 * cxy, cxx - cyy);
+        let (mut fnx, mut fny) = (-libm::sinf(direction), libm::cosf(direction));
+        if fnx * nx + fny * ny < 0.0 {
+            fnx = -fnx;
+            fny = -fny;
+        }
+        let angle = libm::atan2f(fnx, fny);
+        let rho = fnx * (mx + ox) + fny * (my + oy);
+        line = Line { angle, rho };
+        inliers = n;
+    }
+    Some((line, inliers))
+}
+
+/// Sky/ground statistics of one line over the sample grid.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct Separation {
+    /// Share of the samples' variance (luma and colour) explained by the two sides, in [0, 1]
+    /// (Otsu's criterion for a line instead of a threshold).
+    pub explained: f32,
+    /// Evidence that the brighter side (the normal's) is the sky: positive when it is
+    /// brighter, bluer and smoother than the other.
+    pub bright_is_sky: f32,
+}
+
+#[derive(Clone, Copy, Default)]
+struct Moments {
+    n: f32,
+    luma: f32,
+    luma2: f32,
+    chroma: f32,
+    chroma2: f32,
+    texture: f32,
+}
+
+impl Moments {
+    fn add(&mut self, s: &Sample) {
+        self.n += 1.0;
+        self.luma += s.luma;
+        self.luma2 += s.luma * s.luma;
+        self.chroma += s.chroma;
+        self.chroma2 += s.chroma * s.chroma;
+        self.texture += s.texture;
+    }
+}
+
+/// Luma at and above which a sample counts as clipped.
+const SATURATED: f32 = 248.0;
+
+/// Splits the samples by the line (leaving out a band `band` wide around it, where pixels mix
+/// both sides) and measures how well the two sides separate.
+pub(crate) fn separation(samples: &[Sample], line: Line, band: f32) -> Separation {
+    let (nx, ny) = line.normal();
+    let mut bright = Moments::default();
+    let mut dark = Moments::default();
+    for s in samples {
+        // Clipped pixels (glare, over-exposure) say nothing about sky or ground, and a
+        // saturated blob would otherwise dominate the variance.
+        if s.luma >= SATURATED {
+            continue;
+        }
+        let d = s.x * nx + s.y * ny - line.rho;
+        if d > band {
+            bright.add(s);
+        } else if d < -band {
+            dark.add(s);
+        }
+    }
+    let total = bright.n + dark.n;
+    if bright.n < 1.0 || dark.n < 1.0 {
+        return Separation::default();
+    }
+    let (wb, wd) = (bright.n / total, dark.n / total);
+    let mean = |sum: f32, m: &Moments| sum / m.n;
+    let (lb, ld) = (mean(bright.luma, &bright), mean(dark.luma, &dark));
+    let (cb, cd) = (mean(bright.chroma, &bright), mean(dark.chroma, &dark));
+    let (tb, td) = (mean(bright.texture, &bright), mean(dark.texture, &dark));
+    let luma_mean = (bright.luma + dark.luma) / total;
+    let chroma_mean = (bright.chroma + dark.chroma) / total;
+    let luma_var = ((bright.luma2 + dark.luma2) / total - luma_mean * luma_mean).max(0.0);
+    let chroma_var = ((bright.chroma2 + dark.chroma2) / total - chroma_mean * chroma_mean).max(0.0);
+    let between_luma = wb * wd * (lb - ld) * (lb - ld);
+    let between_chroma = wb * wd * (cb - cd) * (cb - cd);
+    // The +1 keeps a flat frame (no variance at all) from looking perfectly separated.
+    let explained =
+        ((between_luma + between_chroma) / (luma_var + chroma_var + 1.0)).clamp(0.0, 1.0);
+    let bright_is_sky = (lb - ld) / (libm::sqrtf(luma_var) + 1.0)
+        + (cb - cd) / (libm::sqrtf(chroma_var) + 4.0)
+        + (td - tb) / (td + tb + 1.0);
+    Separation {
+        explained,
+        bright_is_sky,
+    }
+}

@@ -1,0 +1,622 @@
+//! Horizon detection: roll and pitch from one camera frame, no heap, caller's buffers.
+//!
+//! Pipeline (each stage answers one of the seed's failures, thesis §6.2.3):
+//! 1. working image: luma, binned for frames wider than 400 px ([`edges`]);
+//! 2. 3×3 Sobel gradient, threshold adapted to the frame's gradient distribution, thinned by
+//!    non-maximum suppression, edge points as a list;
+//! 3. radial distortion correction of the points only (conventions camera model);
+//! 4. Hough voting restricted to each point's gradient direction, full-circle angles so that
+//!    the polarity of an edge separates a stripe's two borders ([`hough`]);
+//! 5. several local maxima as candidates, plus the best cell near the tracked line;
+//! 6. each candidate refined by least squares, then validated by how well it separates the
+//!    frame into two statistically different halves (sky and ground), which also says which
+//!    side is the sky (the ±180° ambiguity);
+//! 7. roll and pitch from the conventions' horizon line, a confidence in [0, 1], and tracking:
+//!    a jump away from the tracked line must be clearly better to be taken.
+
+mod camera;
+mod edges;
+mod frame;
+mod hough;
+#[cfg(test)]
+mod tests;
+
+pub use camera::Camera;
+pub use edges::{EdgePoint, MAX_WORKING_WIDTH, Sample};
+pub use frame::{Frame, FrameError, Pixels};
+pub use hough::{ANGLE_BINS, MAX_CANDIDATES};
+
+use core::f32::consts::PI;
+use edges::Working;
+use hough::{Line, Peak, RhoAxis, Tables, wrap_angle};
+
+/// A detected horizon.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Horizon {
+    /// Vehicle roll (rad, conventions: positive right wing down), mount offset removed.
+    pub roll_rad: f32,
+    /// Vehicle pitch (rad, positive nose up), mount offset removed.
+    pub pitch_rad: f32,
+    /// How much to trust this answer, in [0, 1].
+    pub confidence: f32,
+    /// The line in the camera's normalised undistorted coordinates.
+    pub line: HorizonLine,
+}
+
+/// The horizon as the conventions write it, seen by the camera:
+/// `sin(camera_roll)·x + cos(camera_roll)·y = offset` in normalised undistorted coordinates,
+/// with the ground where the left-hand side is larger; `offset = tan(camera_pitch)`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct HorizonLine {
+    pub camera_roll_rad: f32,
+    pub offset: f32,
+}
+
+impl HorizonLine {
+    /// The line of a camera at roll `roll` and pitch `pitch` (rad).
+    pub fn from_attitude(roll: f32, pitch: f32) -> Self {
+        HorizonLine {
+            camera_roll_rad: wrap_angle(roll),
+            offset: libm::tanf(pitch),
+        }
+    }
+
+    pub fn camera_pitch_rad(&self) -> f32 {
+        libm::atanf(self.offset)
+    }
+
+    /// True if the normalised undistorted point `(x, y)` is on the ground side.
+    pub fn is_ground(&self, x: f32, y: f32) -> bool {
+        let (s, c) = (
+            libm::sinf(self.camera_roll_rad),
+            libm::cosf(self.camera_roll_rad),
+        );
+        s * x + c * y > self.offset
+    }
+}
+
+/// Buffer sizes (elements) a [`Workspace`] needs for frames of one size.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct WorkspaceSizes {
+    pub grey: usize,
+    pub rows: usize,
+    pub edges: usize,
+    pub accumulator: usize,
+    pub samples: usize,
+}
+
+impl WorkspaceSizes {
+    /// Total bytes, to plan static buffers.
+    pub fn bytes(&self) -> usize {
+        self.grey
+            + 2 * self.rows
+            + core::mem::size_of::<EdgePoint>() * self.edges
+            + 2 * self.accumulator
+            + core::mem::size_of::<Sample>() * self.samples
+    }
+}
+
+/// The caller's buffers the detector works in. Keep one per frame size and pass it to every
+/// call; nothing in it needs to survive between calls.
+pub struct Workspace<'a> {
+    /// Working (binned luma) image.
+    pub grey: &'a mut [u8],
+    /// Three rows of gradient magnitudes.
+    pub rows: &'a mut [u16],
+    /// Edge points; when full, the remaining edge pixels are dropped (confidence drops too).
+    pub edges: &'a mut [EdgePoint],
+    /// Hough accumulator, `ANGLE_BINS` × rho bins.
+    pub accumulator: &'a mut [u16],
+    /// Sky/ground statistics samples.
+    pub samples: &'a mut [Sample],
+}
+
+/// Edge points kept per working pixel of perimeter: the horizon crosses the frame once, so a
+/// few times the perimeter holds it with room for clutter.
+const EDGES_PER_PERIMETER_PIXEL: usize = 16;
+
+impl Workspace<'_> {
+    /// Sizes for frames `width` × `height`.
+    pub fn required_sizes(width: usize, height: usize) -> WorkspaceSizes {
+        let geo = Working::for_frame(width, height);
+        let rho = rho_half_bins(geo);
+        WorkspaceSizes {
+            grey: geo.width * geo.height,
+            rows: 3 * geo.width,
+            edges: EDGES_PER_PERIMETER_PIXEL * (geo.width + geo.height),
+            accumulator: ANGLE_BINS * (2 * rho + 1),
+            samples: edges::sample_count(geo),
+        }
+    }
+
+    fn fits(&self, sizes: &WorkspaceSizes) -> bool {
+        self.grey.len() >= sizes.grey
+            && self.rows.len() >= sizes.rows
+            && !self.edges.is_empty()
+            && self.accumulator.len() >= sizes.accumulator
+            && !self.samples.is_empty()
+    }
+}
+
+/// Rho bins either side of zero, one working pixel each: the lines through the undistorted
+/// frame reach at most the half-diagonal; 1.5 times that leaves room for principal points off
+/// centre and barrel distortion (undistorted corners move outwards).
+fn rho_half_bins(geo: Working) -> usize {
+    let diagonal = libm::sqrt((geo.width * geo.width + geo.height * geo.height) as f64);
+    libm::ceil(0.75 * diagonal) as usize
+}
+
+/// Tuning of the detector. `Default` is what the accuracy tests were run with.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct DetectorConfig {
+    /// Each edge point votes for normals within this many degrees of its gradient direction.
+    pub vote_window_deg: u8,
+    /// Candidates validated each frame (at most [`MAX_CANDIDATES`]).
+    pub candidates: u8,
+    /// Never take gradient magnitudes (`|gx| + |gy|`, Sobel) below this as edges.
+    pub min_gradient: u16,
+    /// Target edge pixels before thinning, per working pixel of perimeter.
+    pub edge_pixels_per_perimeter_pixel: u16,
+    /// A candidate this close to the tracked horizon in roll (deg) ...
+    pub gate_roll_deg: f32,
+    /// ... and in offset (normalised units, ≈ tan of the pitch change) is a continuation.
+    pub gate_offset: f32,
+    /// A jump out of the gate is taken only if its score beats the best continuation by this
+    /// factor.
+    pub jump_factor: f32,
+    /// Noise level (30th percentile of the Sobel magnitude `|gx| + |gy|`) that each further
+    /// 2× binning of a noisy frame is worth.
+    pub noise_per_binning: u16,
+    /// Frames without a continuation after which the track is dropped and every candidate
+    /// competes on its own score.
+    pub lost_after_frames: u8,
+}
+
+impl Default for DetectorConfig {
+    fn default() -> Self {
+        DetectorConfig {
+            vote_window_deg: 6,
+            candidates: 8,
+            min_gradient: 40,
+            edge_pixels_per_perimeter_pixel: 10,
+            gate_roll_deg: 10.0,
+            gate_offset: 0.08,
+            jump_factor: 1.5,
+            noise_per_binning: 24,
+            lost_after_frames: 5,
+        }
+    }
+}
+
+/// Why the last call found no horizon (or that it found one).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Outcome {
+    Found,
+    /// A workspace buffer is smaller than [`Workspace::required_sizes`] says.
+    WorkspaceTooSmall,
+    /// The camera parameters are not usable (non-finite or non-positive focal length).
+    BadCamera,
+    /// Too few edges: a flat or black frame.
+    NoEdges,
+    /// No line both long enough and separating two different regions.
+    NoCandidate,
+}
+
+/// The horizon being followed from frame to frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Track {
+    line: HorizonLine,
+    /// Frames since the last continuation.
+    misses: u8,
+}
+
+/// A candidate after refinement and validation.
+#[derive(Clone, Copy, Debug)]
+struct Scored {
+    line: Line,
+    horizon: HorizonLine,
+    explained: f32,
+    coverage: f32,
+    score: f32,
+    continues_track: bool,
+}
+
+/// The detector: camera, tuning, tables and tracking state. `detect` once per frame.
+pub struct HorizonDetector {
+    camera: Camera,
+    config: DetectorConfig,
+    tables: Tables,
+    track: Option<Track>,
+    outcome: Outcome,
+    edge_count: usize,
+    working_scale: usize,
+}
+
+/// Share of the quietest gradients that measures a frame's noise.
+const NOISE_PERCENTILE: f32 = 0.3;
+/// Narrowest working image noise binning may go to.
+const MIN_WORKING_WIDTH: usize = 80;
+
+/// Fewest edge points worth running the Hough stage on.
+const MIN_EDGES: usize = 16;
+/// Candidates must explain at least this share of the frame's variance to be a horizon.
+const MIN_EXPLAINED: f32 = 0.08;
+
+impl HorizonDetector {
+    pub fn new(camera: Camera) -> Self {
+        Self::with_config(camera, DetectorConfig::default())
+    }
+
+    pub fn with_config(camera: Camera, config: DetectorConfig) -> Self {
+        HorizonDetector {
+            camera,
+            config,
+            tables: Tables::new(),
+            track: None,
+            outcome: Outcome::NoEdges,
+            edge_count: 0,
+            working_scale: 1,
+        }
+    }
+
+    pub fn camera(&self) -> &Camera {
+        &self.camera
+    }
+
+    pub fn config(&self) -> &DetectorConfig {
+        &self.config
+    }
+
+    /// What the last [`HorizonDetector::detect`] call ended with.
+    pub fn last_outcome(&self) -> Outcome {
+        self.outcome
+    }
+
+    /// Edge points the last call used.
+    pub fn last_edge_count(&self) -> usize {
+        self.edge_count
+    }
+
+    /// Binning factor of the last frame's working image (1 = full resolution).
+    pub fn last_working_scale(&self) -> usize {
+        self.working_scale
+    }
+
+    /// Forgets the tracked horizon (e.g. after a cut in the video).
+    pub fn reset_tracking(&mut self) {
+        self.track = None;
+    }
+
+    /// The horizon in `frame`, or `None` (see [`HorizonDetector::last_outcome`]).
+    pub fn detect(&mut self, frame: &Frame<'_>, ws: &mut Workspace<'_>) -> Option<Horizon> {
+        match self.detect_inner(frame, ws) {
+            Ok(h) => {
+                self.outcome = Outcome::Found;
+                Some(h)
+            }
+            Err(outcome) => {
+                self.outcome = outcome;
+                if let Some(track) = &mut self.track {
+                    track.misses = track.misses.saturating_add(1);
+                    if track.misses > self.config.lost_after_frames {
+                        self.track = None;
+                    }
+                }
+                None
+            }
+        }
+    }
+
+    fn detect_inner(
+        &mut self,
+        frame: &Frame<'_>,
+        ws: &mut Workspace<'_>,
+    ) -> Result<Horizon, Outcome> {
+        let (width, height) = (frame.width(), frame.height());
+        let camera = self.camera.scaled_to(width as u32, height as u32);
+        if !camera.is_valid() {
+            return Err(Outcome::BadCamera);
+        }
+        let sizes = Workspace::required_sizes(width, height);
+        if !ws.fits(&sizes) {
+            return Err(Outcome::WorkspaceTooSmall);
+        }
+        // 1: working image; binned further when the frame is noisy. Binning by k divides the
+        // noise by k and keeps a long straight edge's contrast (the seed's noisy frames
+        // passed the filter "as all-edge"). The noise is read off the quiet part of the
+        // gradient distribution: in a clean frame the sky's 30th percentile is nearly flat.
+        let base = Working::for_frame(width, height);
+        edges::build_working_image(frame, base, ws.grey);
+        let mut histogram = edges::GradientHistogram::measure(ws.grey, base, ws.rows);
+        let noise = histogram.percentile(NOISE_PERCENTILE);
+        let extra = usize::from(noise.div_ceil(self.config.noise_per_binning.max(1))).clamp(1, 4);
+        let mut geo = base;
+        if extra > 1 {
+            let coarser = Working::with_scale(width, height, base.scale * extra);
+            if coarser.width >= MIN_WORKING_WIDTH && coarser.height >= MIN_WORKING_WIDTH / 2 {
+                geo = coarser;
+                edges::build_working_image(frame, geo, ws.grey);
+                histogram = edges::GradientHistogram::measure(ws.grey, geo, ws.rows);
+            }
+        }
+        self.working_scale = geo.scale;
+        let mean_focal = 0.5 * (camera.fx + camera.fy);
+        let rho = RhoAxis {
+            step: geo.scale as f32 / mean_focal,
+            half: rho_half_bins(geo),
+        };
+
+        // 2–3: gradient, thinned and undistorted edge points.
+        let perimeter = geo.width + geo.height;
+        let threshold = histogram.threshold(
+            geo,
+            usize::from(self.config.edge_pixels_per_perimeter_pixel) * perimeter,
+            self.config.min_gradient,
+        );
+        let edge_stats = edges::collect_edges(ws.grey, geo, ws.rows, threshold, &camera, ws.edges);
+        let edge_points = ws.edges.get(..edge_stats.count).unwrap_or(&[]);
+        self.edge_count = edge_points.len();
+        if edge_points.len() < MIN_EDGES {
+            return Err(Outcome::NoEdges);
+        }
+
+        // 4–5: direction-restricted Hough voting and candidates.
+        let window = usize::from(self.config.vote_window_deg).min(ANGLE_BINS / 4);
+        hough::vote(edge_points, &self.tables, rho, window, ws.accumulator);
+        let mut peaks = [Peak::default(); MAX_CANDIDATES];
+        let wanted = usize::from(self.config.candidates).clamp(1, MAX_CANDIDATES - 2);
+        // A horizon shorter than a sixth of the frame width is not worth validating.
+        let min_votes = (geo.width / 6).max(8) as u16;
+        let mut count = hough::find_peaks(
+            ws.accumulator,
+            rho,
+            min_votes,
+            peaks.get_mut(..wanted).unwrap_or(&mut []),
+        );
+        // Search near the tracked line first: its best cell competes even when it is not
+        // among the global maxima (a stripe or a road may out-vote it for a few frames). Both
+        // polarities, as an exposure change can make the ground the brighter side.
+        if let Some(track) = self.track {
+            for (angle, rho_value) in [
+                (track.line.camera_roll_rad + PI, -track.line.offset),
+                (track.line.camera_roll_rad, track.line.offset),
+            ] {
+                let Some(rho_index) = rho.index(rho_value) else {
+                    continue;
+                };
+                // Clamped so that a wild configuration cannot wrap the search around.
+                let angle_window =
+                    (libm::ceilf(self.config.gate_roll_deg) as usize).min(ANGLE_BINS / 4);
+                let rho_window =
+                    (libm::ceilf(self.config.gate_offset / rho.step) as usize).min(rho.bins());
+                if let Some(p) = hough::peak_near(
+                    ws.accumulator,
+                    rho,
+                    hough::angle_bin(angle),
+                    rho_index,
+                    angle_window,
+                    rho_window,
+                ) && p.votes >= min_votes / 2
+                    && !peaks.get(..count).unwrap_or(&[]).contains(&p)
+                    && let Some(slot) = peaks.get_mut(count)
+                {
+                    *slot = p;
+                    count += 1;
+                }
+            }
+        }
+        if count == 0 {
+            return Err(Outcome::NoCandidate);
+        }
+
+        // 6: refine and validate each candidate.
+        let sample_count = edges::collect_samples(frame, ws.grey, geo, &camera, ws.samples);
+        let samples = ws.samples.get(..sample_count).unwrap_or(&[]);
+        let max_radius2 = undistorted_corner_radius2(&camera, width, height);
+        let bands = [3.0 * rho.step, 1.5 * rho.step];
+        // Wide: aliased edges (a staircase) have Sobel directions 20° and more off the line; the
+        // distance band does the selecting.
+        let max_angle_difference = 30.0 * PI / 180.0;
+        let mut scored: [Option<Scored>; MAX_CANDIDATES] = [None; MAX_CANDIDATES];
+        for (peak, slot) in peaks.iter().take(count).zip(scored.iter_mut()) {
+            let start = Line {
+                angle: peak.angle as f32 * hough::ANGLE_STEP,
+                rho: rho.value(peak.rho),
+            };
+            let refined = hough::refine(edge_points, start, &bands, max_angle_difference);
+            let Some((line, inliers)) = refined else {
+                continue;
+            };
+            let expected = expected_edge_pixels(&camera, geo, line, rho, max_radius2);
+            if expected < 4.0 {
+                continue;
+            }
+            let coverage = (inliers as f32 / expected).min(1.0);
+            let separation = hough::separation(samples, line, 2.0 * rho.step);
+            let horizon = self.orient(line, separation.bright_is_sky);
+            let continues_track = self.track.is_some_and(|t| self.in_gate(&t.line, &horizon));
+            *slot = Some(Scored {
+                line,
+                horizon,
+                explained: separation.explained,
+                coverage,
+                score: separation.explained * coverage,
+                continues_track,
+            });
+        }
+
+        // 7: choose, with tracking's jump gate.
+        let best_overall = best_of(&scored, |_| true).ok_or(Outcome::NoCandidate)?;
+        let best_continuation = best_of(&scored, |s| s.continues_track);
+        let mut jumped = false;
+        let chosen = match best_continuation {
+            Some(c) if c.score * self.config.jump_factor >= best_overall.score => c,
+            _ => {
+                jumped = self.track.is_some();
+                best_overall
+            }
+        };
+        if chosen.explained < MIN_EXPLAINED {
+            return Err(Outcome::NoCandidate);
+        }
+
+        // Confidence: the line must split the frame into clearly different halves, be drawn
+        // by edges along most of its length, and have no comparable rival elsewhere.
+        let rival = scored
+            .iter()
+            .flatten()
+            .filter(|s| !same_line(s.line, chosen.line, rho.step))
+            .map(|s| s.score)
+            .fold(0.0f32, f32::max);
+        let explained_term = ((chosen.explained - 0.15) / 0.45).clamp(0.0, 1.0);
+        let coverage_term = ((chosen.coverage - 0.25) / 0.5).clamp(0.0, 1.0);
+        let margin = if chosen.score > 0.0 {
+            (1.0 - rival / chosen.score).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        let mut confidence = explained_term * coverage_term * (0.3 + 0.7 * margin);
+        if edge_stats.dropped > 0 {
+            confidence *= 0.8;
+        }
+        if jumped {
+            confidence *= 0.7;
+        }
+
+        let misses = if chosen.continues_track || self.track.is_none() {
+            0
+        } else {
+            self.track.map_or(0, |t| t.misses.saturating_add(1))
+        };
+        // A jump replaces the track at once only when the old track is lost or the new line
+        // is confident; otherwise the old line stays the reference for the next frame.
+        self.track = match self.track {
+            Some(old) if jumped && confidence < 0.5 && misses <= self.config.lost_after_frames => {
+                Some(Track {
+                    line: old.line,
+                    misses,
+                })
+            }
+            _ => Some(Track {
+                line: chosen.horizon,
+                misses: 0,
+            }),
+        };
+
+        Ok(Horizon {
+            roll_rad: wrap_angle(chosen.horizon.camera_roll_rad - camera.mount_roll_rad),
+            pitch_rad: chosen.horizon.camera_pitch_rad() - camera.mount_pitch_rad,
+            confidence: confidence.clamp(0.0, 1.0),
+            line: chosen.horizon,
+        })
+    }
+
+    /// Which side of a Hough line is the sky. Evidence from the image (brighter, bluer,
+    /// smoother), a prior that the airplane is rarely upside down, and continuity with the
+    /// tracked line, which settles it when the image is ambiguous.
+    fn orient(&self, line: Line, bright_is_sky: f32) -> HorizonLine {
+        // Bright side is sky: ground on the dark side, where −n·p > −rho.
+        let sky_bright = HorizonLine {
+            camera_roll_rad: wrap_angle(line.angle + PI),
+            offset: -line.rho,
+        };
+        let sky_dark = HorizonLine {
+            camera_roll_rad: wrap_angle(line.angle),
+            offset: line.rho,
+        };
+        let mut evidence = bright_is_sky + 0.5 * libm::cosf(sky_bright.camera_roll_rad);
+        if let Some(track) = self.track {
+            evidence += 2.0 * libm::cosf(sky_bright.camera_roll_rad - track.line.camera_roll_rad);
+        }
+        if evidence >= 0.0 {
+            sky_bright
+        } else {
+            sky_dark
+        }
+    }
+
+    fn in_gate(&self, tracked: &HorizonLine, candidate: &HorizonLine) -> bool {
+        let roll_difference = libm::fabsf(wrap_angle(
+            candidate.camera_roll_rad - tracked.camera_roll_rad,
+        ));
+        roll_difference <= self.config.gate_roll_deg * PI / 180.0
+            && libm::fabsf(candidate.offset - tracked.offset) <= self.config.gate_offset
+    }
+}
+
+fn best_of(scored: &[Option<Scored>], keep: impl Fn(&Scored) -> bool) -> Option<Scored> {
+    scored
+        .iter()
+        .flatten()
+        .filter(|s| keep(s))
+        .fold(None, |best: Option<Scored>, s| match best {
+            Some(b) if b.score >= s.score => Some(b),
+            _ => Some(*s),
+        })
+}
+
+/// Two lines within 3° and 4 rho steps of each other, in either polarity.
+fn same_line(a: Line, b: Line, rho_step: f32) -> bool {
+    let close = |angle: f32, rho: f32| {
+        libm::fabsf(wrap_angle(angle - b.angle)) < 3.0 * PI / 180.0
+            && libm::fabsf(rho - b.rho) < 4.0 * rho_step
+    };
+    close(a.angle, a.rho) || close(a.angle + PI, -a.rho)
+}
+
+/// Edge pixels a line would have if it were an edge all the way across the frame: its length
+/// inside the (distorted) frame in working pixels, times the pixels a thinned edge has per
+/// unit of length in its direction (1 along an axis, 1/√2 diagonally).
+/// Largest squared normalised radius of the undistorted frame: points beyond it are outside
+/// the frame, and beyond it a barrel model can fold back into the frame.
+fn undistorted_corner_radius2(camera: &Camera, width: usize, height: usize) -> f32 {
+    let (w, h) = (width as f32 - 0.5, height as f32 - 0.5);
+    let corner = [(-0.5, -0.5), (w, -0.5), (-0.5, h), (w, h)]
+        .iter()
+        .filter_map(|&(u, v)| camera.undistort_pixel(u, v))
+        .map(|(x, y)| x * x + y * y)
+        .fold(0.0, f32::max);
+    if corner > 0.0 {
+        corner * 1.05
+    } else {
+        f32::INFINITY
+    }
+}
+
+fn expected_edge_pixels(
+    camera: &Camera,
+    geo: Working,
+    line: Line,
+    rho: RhoAxis,
+    max_radius2: f32,
+) -> f32 {
+    let (nx, ny) = line.normal();
+    let (dx, dy) = (ny, -nx);
+    let (ox, oy) = (nx * line.rho, ny * line.rho);
+    let (w, h) = (
+        (geo.width * geo.scale) as f32,
+        (geo.height * geo.scale) as f32,
+    );
+    let half = rho.half as i32;
+    let mut inside = 0u32;
+    // Every other rho step is precise enough for a share of the length.
+    for k in (-half..=half).step_by(2) {
+        let t = k as f32 * rho.step;
+        let (x, y) = (ox + t * dx, oy + t * dy);
+        if x * x + y * y > max_radius2 {
+            continue;
+        }
+        let (u, v) = camera.project(x, y);
+        if u >= 0.0 && v >= 0.0 && u < w && v < h {
+            inside += 1;
+        }
+    }
+    let (px, py) = (libm::fabsf(dx) * camera.fx, libm::fabsf(dy) * camera.fy);
+    let mean_focal = 0.5 * (camera.fx + camera.fy);
+    2.0 * inside as f32 * px.max(py) / mean_focal
+}

@@ -1,0 +1,439 @@
+//! `bench`: this detector against the OpenCV pipeline of `opencv_baseline.py`, on the same
+//! synthetic frames (written as PNG to a scratch directory), one thread each.
+//!
+//! Accuracy on every degradation set at 320×240, and on the mixed set at 640×480; speed as
+//! ms/frame over those same frames at each size.
+
+use crate::Error;
+use crate::accuracy::{self, Accuracy, Answer};
+use crate::camera_file::CameraFile;
+use crate::detect::Runner;
+use crate::image_io::{self, Image};
+use crate::synth::{Degradation, Renderer, Truth};
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+/// The OpenCV the baseline is pinned to.
+pub const OPENCV_PIN: &str = "opencv-python-headless==4.10.0.84";
+const SCRIPT: &str = include_str!("../opencv_baseline.py");
+
+#[derive(clap::Args, Debug)]
+pub struct BenchArgs {
+    /// Print one JSON document instead of tables.
+    #[arg(long)]
+    pub json: bool,
+    /// Frames per degradation set.
+    #[arg(long, default_value_t = 60)]
+    pub frames: usize,
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Only this detector (no Python needed).
+    #[arg(long)]
+    pub no_opencv: bool,
+    /// Python interpreter for the baseline.
+    #[arg(long, default_value = "python3")]
+    pub python: String,
+    /// If OpenCV is missing, `pip install` the pinned version first.
+    #[arg(long)]
+    pub install_opencv: bool,
+    /// Keep the frames (and opencv.csv files) in this directory instead of a scratch one.
+    #[arg(long)]
+    pub keep: Option<PathBuf>,
+}
+
+/// One detector's run over one set.
+#[derive(Clone, Debug, Serialize)]
+pub struct Run {
+    pub accuracy: Accuracy,
+    pub ms_mean: f64,
+    pub ms_median: f64,
+}
+
+#[derive(Debug, Serialize)]
+pub struct SetResult {
+    pub set: String,
+    pub size: String,
+    pub ours: Run,
+    pub opencv: Option<Run>,
+    /// More frames within 2° than OpenCV, or as many with a smaller worst p95.
+    pub ours_more_accurate: Option<bool>,
+}
+
+#[derive(Debug, Serialize)]
+pub struct Speed {
+    pub size: String,
+    pub frames: usize,
+    pub ours_ms_mean: f64,
+    pub ours_ms_median: f64,
+    pub opencv_ms_mean: Option<f64>,
+    pub opencv_ms_median: Option<f64>,
+    /// OpenCV's mean ms / ours.
+    pub speedup_mean: Option<f64>,
+    /// OpenCV's median ms / ours: the target's measure, as a median is not moved by the odd
+    /// frame another process on the machine preempts.
+    pub speedup_median: Option<f64>,
+}
+
+#[derive(Debug, Serialize)]
+pub struct Report {
+    pub opencv_version: Option<String>,
+    pub frames_per_set: usize,
+    pub seed: u64,
+    pub threads: usize,
+    pub release_build: bool,
+    pub accuracy: Vec<SetResult>,
+    pub speed: Vec<Speed>,
+    pub more_accurate_on_every_set: Option<bool>,
+    pub at_least_2x_faster: Option<bool>,
+}
+
+/// A synthesised set: frames and truth, rendered once.
+pub struct SynthSet {
+    pub degradation: Degradation,
+    pub renderer: Renderer,
+    pub frames: Vec<Image>,
+    pub truths: Vec<Truth>,
+}
+
+pub fn synthesise(
+    degradation: Degradation,
+    width: usize,
+    height: usize,
+    frames: usize,
+    seed: u64,
+) -> SynthSet {
+    let renderer = Renderer::new(degradation, width, height, seed);
+    let (frames, truths) = (0..frames).map(|i| renderer.render(i)).unzip();
+    SynthSet {
+        degradation,
+        renderer,
+        frames,
+        truths,
+    }
+}
+
+/// Runs this detector over a set (one detector, tracking across frames).
+pub fn run_ours(set: &SynthSet) -> Result<(Vec<Answer>, Vec<f64>), Error> {
+    let mut runner = Runner::new(set.renderer.camera);
+    let mut answers = Vec::with_capacity(set.frames.len());
+    let mut ms = Vec::with_capacity(set.frames.len());
+    for image in &set.frames {
+        let r = runner.run(image).map_err(Error::failure)?;
+        ms.push(r.ms);
+        answers.push(Answer {
+            attitude: r
+                .horizon
+                .map(|h| (h.roll_rad.to_degrees(), h.pitch_rad.to_degrees())),
+            confidence: r.horizon.map(|h| h.confidence),
+        });
+    }
+    Ok((answers, ms))
+}
+
+fn mean(v: &[f64]) -> f64 {
+    if v.is_empty() {
+        f64::NAN
+    } else {
+        v.iter().sum::<f64>() / v.len() as f64
+    }
+}
+
+fn median(v: &[f64]) -> f64 {
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    s.get(s.len() / 2).copied().unwrap_or(f64::NAN)
+}
+
+fn run_of(answers: &[Answer], truths: &[Truth], ms: &[f64]) -> Run {
+    Run {
+        accuracy: accuracy::evaluate(answers, truths),
+        ms_mean: mean(ms),
+        ms_median: median(ms),
+    }
+}
+
+fn more_accurate(ours: &Accuracy, theirs: &Accuracy) -> bool {
+    let worst = |a: &Accuracy| a.roll_p95_deg.max(a.pitch_p95_deg);
+    ours.within_2deg > theirs.within_2deg
+        || (ours.within_2deg == theirs.within_2deg && worst(ours) < worst(theirs))
+}
+
+/// Checks that the baseline can run, installing the pinned OpenCV if asked. Returns its version.
+fn opencv_version(args: &BenchArgs) -> Result<String, Error> {
+    let probe = |python: &str| {
+        Command::new(python)
+            .args([
+                "-c",
+                "import cv2, numpy, sys; sys.stdout.write(cv2.__version__)",
+            ])
+            .output()
+    };
+    let missing = || {
+        Error::input(format!(
+            "the OpenCV baseline needs {} with numpy and {OPENCV_PIN}: run `{} -m pip install {OPENCV_PIN}`, or pass --install-opencv, or --no-opencv",
+            args.python, args.python
+        ))
+    };
+    match probe(&args.python) {
+        Ok(out) if out.status.success() => {
+            return Ok(String::from_utf8_lossy(&out.stdout).into_owned());
+        }
+        Err(_) if !args.install_opencv => return Err(missing()),
+        _ if !args.install_opencv => return Err(missing()),
+        _ => {}
+    }
+    eprintln!("installing {OPENCV_PIN} with {} -m pip", args.python);
+    let status = Command::new(&args.python)
+        .args(["-m", "pip", "install", "--quiet", OPENCV_PIN])
+        .status()
+        .map_err(|e| Error::failure(format!("{} -m pip: {e}", args.python)))?;
+    if !status.success() {
+        return Err(Error::failure(format!(
+            "{} -m pip install {OPENCV_PIN} failed",
+            args.python
+        )));
+    }
+    match probe(&args.python) {
+        Ok(out) if out.status.success() => Ok(String::from_utf8_lossy(&out.stdout).into_owned()),
+        _ => Err(missing()),
+    }
+}
+
+fn write_set(dir: &Path, set: &SynthSet) -> Result<(), Error> {
+    std::fs::create_dir_all(dir).map_err(|e| Error::failure(format!("{}: {e}", dir.display())))?;
+    let camera_path = dir.join("camera.toml");
+    std::fs::write(&camera_path, CameraFile::to_toml(&set.renderer.camera))
+        .map_err(|e| Error::failure(format!("{}: {e}", camera_path.display())))?;
+    let mut truth = String::from("frame,roll_deg,pitch_deg\n");
+    for (i, (image, t)) in set.frames.iter().zip(&set.truths).enumerate() {
+        image_io::write_png(&dir.join(format!("frame_{i:06}.png")), image)?;
+        truth.push_str(&format!("{i},{:.4},{:.4}\n", t.roll_deg, t.pitch_deg));
+    }
+    let truth_path = dir.join("truth.csv");
+    std::fs::write(&truth_path, truth)
+        .map_err(|e| Error::failure(format!("{}: {e}", truth_path.display())))
+}
+
+/// Reads `opencv.csv` (`frame,roll_deg,pitch_deg,ms`).
+fn read_opencv_csv(path: &Path) -> Result<(Vec<Answer>, Vec<f64>), Error> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| Error::failure(format!("{}: {e}", path.display())))?;
+    let mut answers = Vec::new();
+    let mut ms = Vec::new();
+    for (n, line) in text.lines().enumerate().skip(1) {
+        let fields: Vec<&str> = line.split(',').collect();
+        let bad = || Error::failure(format!("{}: line {}: {line:?}", path.display(), n + 1));
+        let [_, roll, pitch, t] = fields.as_slice() else {
+            return Err(bad());
+        };
+        let attitude = match (roll.parse::<f32>(), pitch.parse::<f32>()) {
+            (Ok(r), Ok(p)) => Some((r, p)),
+            _ => None,
+        };
+        answers.push(Answer {
+            attitude,
+            confidence: None,
+        });
+        ms.push(t.parse::<f64>().map_err(|_| bad())?);
+    }
+    Ok((answers, ms))
+}
+
+pub fn run(args: &BenchArgs) -> Result<(), Error> {
+    if args.frames == 0 {
+        return Err(Error::input("--frames must be at least 1"));
+    }
+    let opencv_version = if args.no_opencv {
+        None
+    } else {
+        Some(opencv_version(args)?)
+    };
+    let scratch = args.keep.clone().unwrap_or_else(|| {
+        std::env::temp_dir().join(format!("skyframe-horizon-bench-{}", std::process::id()))
+    });
+    let result = bench_in(args, &scratch, opencv_version);
+    if args.keep.is_none() {
+        let _ = std::fs::remove_dir_all(&scratch);
+    }
+    let report = result?;
+    if args.json {
+        let text =
+            serde_json::to_string_pretty(&report).map_err(|e| Error::failure(e.to_string()))?;
+        println!("{text}");
+    } else {
+        print_tables(&report);
+    }
+    Ok(())
+}
+
+fn bench_in(
+    args: &BenchArgs,
+    scratch: &Path,
+    opencv_version: Option<String>,
+) -> Result<Report, Error> {
+    let mut plan: Vec<(Degradation, usize, usize)> =
+        Degradation::SETS.iter().map(|&d| (d, 320, 240)).collect();
+    plan.push((Degradation::Mixed, 640, 480));
+    let mut sets = Vec::new();
+    for &(degradation, w, h) in &plan {
+        eprintln!("rendering {} at {w}×{h}", degradation.name());
+        let set = synthesise(degradation, w, h, args.frames, args.seed);
+        let dir = scratch.join(format!("{}-{w}x{h}", degradation.name()));
+        if opencv_version.is_some() {
+            write_set(&dir, &set)?;
+        }
+        sets.push((set, dir, format!("{w}x{h}")));
+    }
+    let mut ours = Vec::new();
+    for (set, _, _) in &sets {
+        ours.push(run_ours(set)?);
+    }
+    let mut theirs: Vec<Option<(Vec<Answer>, Vec<f64>)>> = vec![None; sets.len()];
+    if opencv_version.is_some() {
+        let script = scratch.join("opencv_baseline.py");
+        std::fs::write(&script, SCRIPT)
+            .map_err(|e| Error::failure(format!("{}: {e}", script.display())))?;
+        eprintln!("running the OpenCV baseline");
+        let status = Command::new(&args.python)
+            .arg(&script)
+            .args(sets.iter().map(|(_, dir, _)| dir))
+            .status()
+            .map_err(|e| Error::failure(format!("{}: {e}", args.python)))?;
+        if !status.success() {
+            return Err(Error::failure(format!(
+                "the OpenCV baseline failed ({status})"
+            )));
+        }
+        for (slot, (_, dir, _)) in theirs.iter_mut().zip(&sets) {
+            *slot = Some(read_opencv_csv(&dir.join("opencv.csv"))?);
+        }
+    }
+    let mut accuracy = Vec::new();
+    for (((set, _, size), (answers, ms)), other) in sets.iter().zip(&ours).zip(&theirs) {
+        let ours_run = run_of(answers, &set.truths, ms);
+        let opencv_run = other.as_ref().map(|(a, m)| run_of(a, &set.truths, m));
+        accuracy.push(SetResult {
+            set: set.degradation.name().to_string(),
+            size: size.clone(),
+            ours_more_accurate: opencv_run
+                .as_ref()
+                .map(|o| more_accurate(&ours_run.accuracy, &o.accuracy)),
+            ours: ours_run,
+            opencv: opencv_run,
+        });
+    }
+    let mut speed = Vec::new();
+    for size in ["320x240", "640x480"] {
+        let pick = |i: usize| sets.get(i).is_some_and(|(_, _, s)| s == size);
+        let ours_ms: Vec<f64> = ours
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| pick(*i))
+            .flat_map(|(_, (_, m))| m.clone())
+            .collect();
+        let theirs_ms: Vec<f64> = theirs
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| pick(*i))
+            .filter_map(|(_, t)| t.as_ref())
+            .flat_map(|(_, m)| m.clone())
+            .collect();
+        let has_opencv = !theirs_ms.is_empty();
+        speed.push(Speed {
+            size: size.to_string(),
+            frames: ours_ms.len(),
+            ours_ms_mean: mean(&ours_ms),
+            ours_ms_median: median(&ours_ms),
+            opencv_ms_mean: has_opencv.then(|| mean(&theirs_ms)),
+            opencv_ms_median: has_opencv.then(|| median(&theirs_ms)),
+            speedup_mean: has_opencv.then(|| mean(&theirs_ms) / mean(&ours_ms)),
+            speedup_median: has_opencv.then(|| median(&theirs_ms) / median(&ours_ms)),
+        });
+    }
+    let more_accurate_on_every_set = opencv_version
+        .as_ref()
+        .map(|_| accuracy.iter().all(|a| a.ours_more_accurate == Some(true)));
+    let at_least_2x_faster = opencv_version.as_ref().map(|_| {
+        speed
+            .iter()
+            .all(|s| s.speedup_median.is_some_and(|x| x >= 2.0))
+    });
+    Ok(Report {
+        opencv_version,
+        frames_per_set: args.frames,
+        seed: args.seed,
+        threads: 1,
+        release_build: !cfg!(debug_assertions),
+        accuracy,
+        speed,
+        more_accurate_on_every_set,
+        at_least_2x_faster,
+    })
+}
+
+fn print_tables(report: &Report) {
+    println!(
+        "{:<20} {:>8} | {:>7} {:>6} {:>6} {:>6} {:>6} {:>5} {:>5} | {:>7} {:>6} {:>6} {:>6} {:>6}",
+        "set",
+        "size",
+        "within2",
+        "r_med",
+        "r_p95",
+        "p_med",
+        "p_p95",
+        "conf",
+        "lies",
+        "cv_w2",
+        "r_med",
+        "r_p95",
+        "p_med",
+        "p_p95"
+    );
+    for s in &report.accuracy {
+        let a = &s.ours.accuracy;
+        print!(
+            "{:<20} {:>8} | {:>7.2} {:>6.2} {:>6.2} {:>6.2} {:>6.2} {:>5.2} {:>5} |",
+            s.set,
+            s.size,
+            a.within_2deg,
+            a.roll_median_deg,
+            a.roll_p95_deg,
+            a.pitch_median_deg,
+            a.pitch_p95_deg,
+            a.confident.unwrap_or(0.0),
+            a.wrong_confident
+        );
+        match &s.opencv {
+            Some(o) => {
+                let b = &o.accuracy;
+                println!(
+                    " {:>7.2} {:>6.2} {:>6.2} {:>6.2} {:>6.2}",
+                    b.within_2deg,
+                    b.roll_median_deg,
+                    b.roll_p95_deg,
+                    b.pitch_median_deg,
+                    b.pitch_p95_deg
+                );
+            }
+            None => println!(),
+        }
+    }
+    println!(
+        "within2: share of frames with roll and pitch within 2°; r/p med, p95: errors (°) over \
+         the frames answered; conf: share answered with confidence > 0.5; lies: frames > 5° \
+         wrong with confidence > 0.5; cv_*: the OpenCV pipeline"
+    );
+    for s in &report.speed {
+        match (s.opencv_ms_mean, s.opencv_ms_median, s.speedup_median) {
+            (Some(cv), Some(cv_median), Some(x)) => println!(
+                "{}: ours {:.3} ms/frame (median {:.3}), OpenCV {:.3} ms/frame (median {:.3}), {:.1}× faster (medians)",
+                s.size, s.ours_ms_mean, s.ours_ms_median, cv, cv_median, x
+            ),
+            _ => println!(
+                "{}: ours {:.3} ms/frame (median {:.3})",
+                s.size, s.ours_ms_mean, s.ours_ms_median
+            ),
+        }
+    }
+}

@@ -1,0 +1,564 @@
+//! Synthetic flight video with ground truth: a camera on an airplane flying a roll/pitch
+//! trajectory over textured fields under a graded sky, with the degradations of the seed's
+//! flight video (thesis Figures 6-9 to 6-13) laid on top.
+//!
+//! The renderer traces each pixel's ray: through the camera model (distortion included) into
+//! body axes and then the level world frame (conventions: `R = Rz(ψ)·Ry(θ)·Rx(φ)`), so the
+//! sky/ground boundary is exactly the conventions' horizon line and the truth is the
+//! trajectory's roll and pitch.
+
+use crate::image_io::Image;
+use clap::ValueEnum;
+use skyframe_core::horizon::Camera;
+
+/// The degradation sets. Each one is one failure of the seed's detector.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, ValueEnum)]
+pub enum Degradation {
+    /// Sky gradient and mildly textured fields, nothing else.
+    Clean,
+    /// Gaussian sensor noise on every pixel.
+    SensorNoise,
+    /// Bursts of radio-link noise: heavy grain, sparkles, torn lines, lost colour (Fig. 6-10).
+    TransmissionNoise,
+    /// A bright horizontal stripe moving down the frame (lost vertical sync, Fig. 6-11).
+    WhiteStripes,
+    /// The same stripe, black.
+    BlackStripes,
+    /// Exposure, contrast, saturation and tint changing from frame to frame (Fig. 6-12).
+    Exposure,
+    /// Heading into the sun: bloom, smear column, flare ghosts, veiling glare (Fig. 6-13).
+    Glare,
+    /// Roads and high-contrast field edges on the ground.
+    Roads,
+    /// Broken cloud with hard edges in the sky.
+    Clouds,
+    /// A wide-angle lens with strong barrel distortion (Fig. 6-9); the camera file says so.
+    Distortion,
+    /// All of the above at once, milder each.
+    Mixed,
+}
+
+impl Degradation {
+    pub const SETS: [Degradation; 10] = [
+        Degradation::Clean,
+        Degradation::SensorNoise,
+        Degradation::TransmissionNoise,
+        Degradation::WhiteStripes,
+        Degradation::BlackStripes,
+        Degradation::Exposure,
+        Degradation::Glare,
+        Degradation::Roads,
+        Degradation::Clouds,
+        Degradation::Distortion,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Degradation::Clean => "clean",
+            Degradation::SensorNoise => "sensor-noise",
+            Degradation::TransmissionNoise => "transmission-noise",
+            Degradation::WhiteStripes => "white-stripes",
+            Degradation::BlackStripes => "black-stripes",
+            Degradation::Exposure => "exposure",
+            Degradation::Glare => "glare",
+            Degradation::Roads => "roads",
+            Degradation::Clouds => "clouds",
+            Degradation::Distortion => "distortion",
+            Degradation::Mixed => "mixed",
+        }
+    }
+
+    fn index(self) -> u64 {
+        self as u64
+    }
+}
+
+/// Deterministic pseudo-random numbers (SplitMix64): the same seed gives the same video on
+/// every machine.
+#[derive(Clone, Debug)]
+pub struct Rng(u64);
+
+impl Rng {
+    pub fn new(seed: u64) -> Self {
+        Rng(seed ^ 0x9E37_79B9_7F4A_7C15)
+    }
+
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+
+    /// Uniform in [0, 1).
+    pub fn uniform(&mut self) -> f32 {
+        (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32
+    }
+
+    pub fn range(&mut self, lo: f32, hi: f32) -> f32 {
+        lo + (hi - lo) * self.uniform()
+    }
+
+    /// Approximately normal (sum of four uniforms), mean 0, standard deviation 1.
+    pub fn normal(&mut self) -> f32 {
+        let s: f32 = (0..4).map(|_| self.uniform()).sum();
+        (s - 2.0) * 1.732_050_8
+    }
+}
+
+/// Hash of integer lattice coordinates to [0, 1): the static texture of the world.
+fn lattice(seed: u64, x: i64, y: i64) -> f32 {
+    let mut h = seed
+        ^ (x as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
+        ^ (y as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F);
+    h = (h ^ (h >> 31)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    h ^= h >> 29;
+    (h >> 40) as f32 / (1u64 << 24) as f32
+}
+
+/// Smooth value noise in [0, 1) at unit lattice spacing.
+fn value_noise(seed: u64, x: f32, y: f32) -> f32 {
+    let (xf, yf) = (x.floor(), y.floor());
+    let (tx, ty) = (x - xf, y - yf);
+    let (sx, sy) = (tx * tx * (3.0 - 2.0 * tx), ty * ty * (3.0 - 2.0 * ty));
+    let (xi, yi) = (xf as i64, yf as i64);
+    let a = lattice(seed, xi, yi);
+    let b = lattice(seed, xi + 1, yi);
+    let c = lattice(seed, xi, yi + 1);
+    let d = lattice(seed, xi + 1, yi + 1);
+    let top = a + (b - a) * sx;
+    let bottom = c + (d - c) * sx;
+    top + (bottom - top) * sy
+}
+
+fn fbm(seed: u64, x: f32, y: f32, octaves: u32) -> f32 {
+    let (mut sum, mut amplitude, mut frequency, mut norm) = (0.0, 0.5, 1.0, 0.0);
+    for o in 0..octaves {
+        sum += amplitude * value_noise(seed.wrapping_add(o as u64), x * frequency, y * frequency);
+        norm += amplitude;
+        amplitude *= 0.5;
+        frequency *= 2.0;
+    }
+    sum / norm
+}
+
+/// The true attitude of one frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Truth {
+    pub roll_deg: f32,
+    pub pitch_deg: f32,
+}
+
+/// A flight-like trajectory: banked turns with faster wobble, pitch changes of a few degrees,
+/// sampled at 10 frames per second of flight, heading turning with the bank.
+pub fn trajectory(frame: usize, seed: u64) -> (Truth, f32) {
+    let mut rng = Rng::new(seed);
+    let phases: [f32; 5] = std::array::from_fn(|_| rng.range(0.0, std::f32::consts::TAU));
+    let t = frame as f32 / 10.0;
+    let tau = std::f32::consts::TAU;
+    let roll = 30.0 * (tau * t / 7.0 + phases[0]).sin() + 12.0 * (tau * t / 2.3 + phases[1]).sin();
+    let pitch =
+        2.0 + 6.0 * (tau * t / 5.0 + phases[2]).sin() + 3.0 * (tau * t / 1.7 + phases[3]).sin();
+    let heading = phases[4] + 0.15 * t + 0.2 * (tau * t / 7.0).sin();
+    (
+        Truth {
+            roll_deg: roll,
+            pitch_deg: pitch,
+        },
+        heading,
+    )
+}
+
+/// The camera used for a degradation set at a frame size.
+pub fn camera_for(degradation: Degradation, width: usize, height: usize) -> Camera {
+    let mut camera = Camera::ideal(width as u32, height as u32, 60f32.to_radians());
+    if matches!(degradation, Degradation::Distortion | Degradation::Mixed) {
+        camera = Camera::ideal(width as u32, height as u32, 80f32.to_radians());
+        camera.k1 = if degradation == Degradation::Distortion {
+            -0.28
+        } else {
+            -0.15
+        };
+        camera.k2 = if degradation == Degradation::Distortion {
+            0.08
+        } else {
+            0.03
+        };
+    }
+    camera
+}
+
+/// Renders sequences of one degradation set. Rays through every pixel are computed once.
+pub struct Renderer {
+    pub degradation: Degradation,
+    pub camera: Camera,
+    pub width: usize,
+    pub height: usize,
+    seed: u64,
+    /// Normalised undistorted rays of 2×2 points inside each pixel (a sensor integrates
+    /// over the pixel's area; point sampling would draw the horizon as a hard staircase).
+    rays: Vec<[(f32, f32); 4]>,
+}
+
+/// Altitude above the fields (m) and of the cloud base above the airplane (m).
+const ALTITUDE_M: f32 = 120.0;
+const CLOUD_BASE_M: f32 = 900.0;
+/// Ground speed (m per frame at 10 frames per second of flight).
+const METRES_PER_FRAME: f32 = 2.5;
+
+impl Renderer {
+    pub fn new(degradation: Degradation, width: usize, height: usize, seed: u64) -> Self {
+        let camera = camera_for(degradation, width, height);
+        let rays = (0..height)
+            .flat_map(|v| (0..width).map(move |u| (u, v)))
+            .map(|(u, v)| {
+                [(-0.25, -0.25), (0.25, -0.25), (-0.25, 0.25), (0.25, 0.25)].map(|(du, dv)| {
+                    camera
+                        .undistort_pixel(u as f32 + du, v as f32 + dv)
+                        .unwrap_or((f32::NAN, f32::NAN))
+                })
+            })
+            .collect();
+        Renderer {
+            degradation,
+            camera,
+            width,
+            height,
+            seed: seed.wrapping_mul(31).wrapping_add(degradation.index()),
+            rays,
+        }
+    }
+
+    fn has(&self, d: Degradation) -> bool {
+        self.degradation == d || self.degradation == Degradation::Mixed
+    }
+
+    /// Frame `index` of the sequence and its truth.
+    pub fn render(&self, index: usize) -> (Image, Truth) {
+        let (truth, heading) = trajectory(index, self.seed);
+        let (roll, pitch) = (truth.roll_deg.to_radians(), truth.pitch_deg.to_radians());
+        let (sr, cr, sp, cp, sh, ch) = (
+            roll.sin(),
+            roll.cos(),
+            pitch.sin(),
+            pitch.cos(),
+            heading.sin(),
+            heading.cos(),
+        );
+        let north = index as f32 * METRES_PER_FRAME * ch;
+        let east = index as f32 * METRES_PER_FRAME * sh;
+        let mut frame_rng =
+            Rng::new(self.seed ^ (index as u64).wrapping_mul(0xA24B_AED4_963E_E407));
+        let roads = self.has(Degradation::Roads);
+        let clouds = self.has(Degradation::Clouds);
+        let cloud_cover = if self.degradation == Degradation::Clouds {
+            0.6
+        } else {
+            0.3
+        };
+        let world = self.seed;
+        let shade = |x: f32, y: f32| -> [f32; 3] {
+            if x.is_nan() {
+                return [0.0; 3];
+            }
+            // Body FRD ray (forward, right, down) = camera (z, x, y); then Rx(roll), Ry(pitch).
+            let (bx, by, bz) = (1.0, x, y);
+            let (rx, ry, rz) = (bx, cr * by - sr * bz, sr * by + cr * bz);
+            let (px, py, pz) = (cp * rx + sp * rz, ry, -sp * rx + cp * rz);
+            // Then Rz(heading) into north/east.
+            let (wn, we, wd) = (ch * px - sh * py, sh * px + ch * py, pz);
+            let length = (wn * wn + we * we + wd * wd).sqrt();
+            if wd > 0.0 {
+                let t = ALTITUDE_M / wd;
+                let (gn, ge) = (north + t * wn, east + t * we);
+                return ground_colour(world, gn, ge, t * length, roads);
+            }
+            let elevation = (-wd / length).clamp(0.0, 1.0);
+            let mut c = sky_colour(elevation);
+            if clouds && wd < -1e-3 {
+                let t = CLOUD_BASE_M / -wd;
+                let (cn, ce) = (north + t * wn, east + t * we);
+                let density = fbm(world ^ 0xC10D, cn / 700.0, ce / 700.0, 4);
+                let cover = ((density - (1.0 - cloud_cover)) * 6.0).clamp(0.0, 1.0);
+                // Distant clouds fade into the haze at the horizon.
+                let fade = (-(t * length) / 20_000.0).exp();
+                let grey = 170.0 + 80.0 * fbm(world ^ 0x5AD, cn / 150.0, ce / 150.0, 2);
+                let k = cover * fade;
+                for channel in c.iter_mut() {
+                    *channel = *channel * (1.0 - k) + grey * k;
+                }
+            }
+            c
+        };
+        let mut pixels: Vec<[f32; 3]> = self
+            .rays
+            .iter()
+            .map(|rays| {
+                let mut sum = [0f32; 3];
+                for &(x, y) in rays {
+                    for (s, c) in sum.iter_mut().zip(shade(x, y)) {
+                        *s += 0.25 * c;
+                    }
+                }
+                sum
+            })
+            .collect();
+        blur_121(&mut pixels, self.width, self.height);
+        self.degrade(&mut pixels, index, &mut frame_rng, roll, pitch, heading);
+        let mut image = Image::new_rgb(self.width, self.height);
+        for (out, p) in image.data.chunks_exact_mut(3).zip(&pixels) {
+            for (o, v) in out.iter_mut().zip(p) {
+                *o = v.round().clamp(0.0, 255.0) as u8;
+            }
+        }
+        (image, truth)
+    }
+
+    fn degrade(
+        &self,
+        pixels: &mut [[f32; 3]],
+        index: usize,
+        rng: &mut Rng,
+        roll: f32,
+        pitch: f32,
+        heading: f32,
+    ) {
+        let (w, h) = (self.width, self.height);
+        let scale = w as f32 / 320.0;
+        let mixed = self.degradation == Degradation::Mixed;
+        if self.has(Degradation::Glare) {
+            self.glare(pixels, roll, pitch, heading, mixed);
+        }
+        if self.has(Degradation::Exposure) {
+            // Exposure drifts with the view and jumps when the camera's auto-exposure steps.
+            let drift = ((index as f32) * 0.7).sin() * 0.5 + ((index as f32) * 0.23).cos() * 0.3;
+            let jump = if rng.uniform() < 0.3 {
+                rng.range(-0.5, 0.5)
+            } else {
+                0.0
+            };
+            let gain = (1.0 + drift + jump).clamp(0.3, 2.0);
+            let contrast = rng.range(0.5, 1.3);
+            let saturation = rng.range(0.1, 1.6);
+            let tint = [
+                rng.range(0.75, 1.25),
+                rng.range(0.8, 1.2),
+                rng.range(0.75, 1.25),
+            ];
+            for p in pixels.iter_mut() {
+                let grey = 0.3 * p[0] + 0.59 * p[1] + 0.11 * p[2];
+                for (c, t) in p.iter_mut().zip(tint) {
+                    let saturated = grey + (*c - grey) * saturation;
+                    *c = ((saturated - 128.0) * contrast + 128.0) * gain * t;
+                }
+            }
+        }
+        if self.has(Degradation::SensorNoise) {
+            let sigma = if mixed { 6.0 } else { 14.0 };
+            for p in pixels.iter_mut() {
+                for c in p.iter_mut() {
+                    *c += sigma * rng.normal();
+                }
+            }
+        }
+        if self.has(Degradation::TransmissionNoise) && rng.uniform() < if mixed { 0.3 } else { 0.7 }
+        {
+            // A burst: grain whose strength varies down the frame, torn (shifted) lines,
+            // sparkles (short bright and dark dashes), and sometimes the colour drops out.
+            let sigma = rng.range(20.0, 55.0);
+            let lose_colour = rng.uniform() < 0.4;
+            let mut row_copy = vec![[0f32; 3]; w];
+            for y in 0..h {
+                let row = &mut pixels[y * w..(y + 1) * w];
+                let strength =
+                    sigma * (0.5 + 0.5 * ((y as f32 / h as f32) * 5.0 + index as f32).sin().abs());
+                if rng.uniform() < 0.05 {
+                    let shift = (rng.range(-8.0, 8.0) * scale) as isize;
+                    row_copy.copy_from_slice(row);
+                    for (x, p) in row.iter_mut().enumerate() {
+                        let src = (x as isize - shift).clamp(0, w as isize - 1) as usize;
+                        *p = row_copy[src];
+                    }
+                }
+                for p in row.iter_mut() {
+                    let common = strength * rng.normal();
+                    for c in p.iter_mut() {
+                        *c += common + 0.3 * strength * rng.normal();
+                    }
+                    if lose_colour {
+                        let grey = (p[0] + p[1] + p[2]) / 3.0;
+                        *p = [grey; 3];
+                    }
+                }
+                let sparkles = (rng.uniform() * 3.0 * scale) as usize;
+                for _ in 0..sparkles {
+                    let x0 = (rng.uniform() * w as f32) as usize;
+                    let length = (rng.range(3.0, 14.0) * scale) as usize;
+                    let value = if rng.uniform() < 0.5 { 255.0 } else { 0.0 };
+                    for p in row.iter_mut().skip(x0).take(length) {
+                        *p = [value; 3];
+                    }
+                }
+            }
+        }
+        let stripe = if self.has(Degradation::WhiteStripes) {
+            Some(255.0)
+        } else if self.degradation == Degradation::BlackStripes {
+            Some(0.0)
+        } else {
+            None
+        };
+        if let Some(value) = stripe
+            && rng.uniform() < if mixed { 0.3 } else { 0.75 }
+        {
+            // The stripe moves down the frame from one frame to the next.
+            let thickness = (rng.range(4.0, 18.0) * scale) as usize;
+            let top = (index * 37 + (rng.uniform() * 20.0) as usize) * h / 240 % h;
+            for y in top..(top + thickness).min(h) {
+                for p in pixels[y * w..(y + 1) * w].iter_mut() {
+                    let jitter = 8.0 * rng.normal();
+                    *p = [value + jitter; 3];
+                }
+            }
+        }
+    }
+
+    /// The sun ahead and low: a bloom around it, a vertical smear column through it (CCD
+    /// smear), ghosts along the line through the image centre, and a veil lifting the blacks.
+    fn glare(&self, pixels: &mut [[f32; 3]], roll: f32, pitch: f32, heading: f32, mixed: bool) {
+        let (w, h) = (self.width, self.height);
+        // Sun direction in the world: azimuth near the initial heading, 12° up.
+        let (sun_azimuth, sun_elevation) = (heading - 0.15, 12f32.to_radians());
+        let world = [
+            sun_elevation.cos() * sun_azimuth.cos(),
+            sun_elevation.cos() * sun_azimuth.sin(),
+            -sun_elevation.sin(),
+        ];
+        // World → body: transpose of Rz·Ry·Rx.
+        let (sh, ch) = heading.sin_cos();
+        let (sp, cp) = pitch.sin_cos();
+        let (sr, cr) = roll.sin_cos();
+        let (n1, e1) = (
+            ch * world[0] + sh * world[1],
+            -sh * world[0] + ch * world[1],
+        );
+        let (f2, d2) = (cp * n1 - sp * world[2], sp * n1 + cp * world[2]);
+        let (r3, d3) = (cr * e1 + sr * d2, -sr * e1 + cr * d2);
+        if f2 <= 0.05 {
+            return;
+        }
+        let (su, sv) = self.camera.project(r3 / f2, d3 / f2);
+        let strength = if mixed { 0.5 } else { 1.0 };
+        let radius = 0.35 * w as f32;
+        let (cx, cy) = (w as f32 / 2.0, h as f32 / 2.0);
+        for y in 0..h {
+            for x in 0..w {
+                let (dx, dy) = (x as f32 - su, y as f32 - sv);
+                let r2 = (dx * dx + dy * dy) / (radius * radius);
+                let bloom = 220.0 * (-r2 * 3.0).exp() + 70.0 * (-r2 * 0.4).exp();
+                let smear = if (dx.abs() / w as f32) < 0.012 {
+                    120.0
+                } else {
+                    0.0
+                };
+                let mut ghost = 0.0;
+                for k in [0.6f32, 1.3, 1.8] {
+                    let (gx, gy) = (su + (cx - su) * k, sv + (cy - sv) * k);
+                    let gr = ((x as f32 - gx).powi(2) + (y as f32 - gy).powi(2)).sqrt();
+                    let ring = 0.04 * w as f32 * k;
+                    if gr < ring {
+                        ghost += 45.0;
+                    }
+                }
+                let p = &mut pixels[y * w + x];
+                for (i, c) in p.iter_mut().enumerate() {
+                    let warm = [1.0, 0.95, 0.8][i];
+                    let veiled = *c * (1.0 - 0.35 * strength) + 70.0 * strength;
+                    *c = veiled + strength * warm * (bloom + smear + ghost);
+                }
+            }
+        }
+    }
+}
+
+/// The lens: a separable [1 2 1]/4 blur (no real lens draws a one-pixel-sharp edge).
+fn blur_121(pixels: &mut [[f32; 3]], width: usize, height: usize) {
+    let mut copy = pixels.to_vec();
+    for (pass, (step, count, length)) in [(1, height, width), (width, width, height)]
+        .into_iter()
+        .enumerate()
+    {
+        let source: &[[f32; 3]] = if pass == 0 { pixels } else { &copy };
+        let mut out = source.to_vec();
+        for line in 0..count {
+            let base = if pass == 0 { line * width } else { line };
+            for i in 0..length {
+                let at = |k: usize| source[base + k.min(length - 1) * step];
+                let (a, b, c) = (at(i.saturating_sub(1)), at(i), at(i + 1));
+                for ch in 0..3 {
+                    out[base + i * step][ch] = 0.25 * a[ch] + 0.5 * b[ch] + 0.25 * c[ch];
+                }
+            }
+        }
+        if pass == 0 {
+            copy = out;
+        } else {
+            pixels.copy_from_slice(&out);
+        }
+    }
+}
+
+fn sky_colour(elevation: f32) -> [f32; 3] {
+    let horizon = [200.0, 214.0, 232.0];
+    let zenith = [80.0, 130.0, 210.0];
+    let t = elevation.sqrt();
+    std::array::from_fn(|i| horizon[i] + (zenith[i] - horizon[i]) * t)
+}
+
+/// Fields (patches with their own colour), fine texture, optionally roads and strong field
+/// edges; distant ground fades into haze (which is what makes real horizons low-contrast).
+fn ground_colour(world: u64, north: f32, east: f32, distance: f32, roads: bool) -> [f32; 3] {
+    const PALETTE: [[f32; 3]; 5] = [
+        [78.0, 110.0, 52.0],
+        [96.0, 120.0, 60.0],
+        [120.0, 108.0, 70.0],
+        [70.0, 96.0, 48.0],
+        [140.0, 132.0, 80.0],
+    ];
+    let field_size = 80.0;
+    let (fi, fj) = (
+        (north / field_size).floor() as i64,
+        (east / field_size).floor() as i64,
+    );
+    let pick = lattice(world ^ 0xF1E1D, fi, fj);
+    let mut c = PALETTE[((pick * PALETTE.len() as f32) as usize).min(PALETTE.len() - 1)];
+    if roads {
+        // Stronger field contrast (ploughed, harvested, green) and dark hedges on the edges.
+        let boost = (pick - 0.5) * 90.0;
+        for ch in c.iter_mut() {
+            *ch += boost;
+        }
+        let (dn, de) = (
+            (north - fi as f32 * field_size).min((fi + 1) as f32 * field_size - north),
+            (east - fj as f32 * field_size).min((fj + 1) as f32 * field_size - east),
+        );
+        if dn.min(de) < 2.0 {
+            c = [40.0, 55.0, 30.0];
+        }
+        // A straight bright road across the heading, another diagonal, a dark one.
+        if (north - 400.0 * (north / 400.0).round()).abs() < 4.0 {
+            c = [185.0, 185.0, 180.0];
+        }
+        if (east - 0.4 * north - 150.0).abs() % 600.0 < 5.0 {
+            c = [175.0, 170.0, 160.0];
+        }
+        if (east + 0.7 * north).rem_euclid(500.0) < 6.0 {
+            c = [50.0, 50.0, 55.0];
+        }
+    }
+    let texture = (fbm(world ^ 0x7E7, north / 6.0, east / 6.0, 3) - 0.5) * 40.0;
+    let haze = 1.0 - (-distance / 2500.0).exp();
+    let haze_colour = [150.0, 160.0, 170.0];
+    std::array::from_fn(|i| (c[i] + texture) * (1.0 - haze) + haze_colour[i] * haze)
+}

@@ -1,0 +1,166 @@
+//! Accuracy on synthesised flights, one test per degradation of the seed's video (thesis
+//! §6.2.3), 320×240. Bounds hold for this seed with margin; `cargo run --release -p
+//! skyframe-horizon -- bench --seed 5 --frames 30 --no-opencv` prints the same figures.
+//!
+//! Two kinds of assertions:
+//! - accuracy: share of frames with roll and pitch both within 2°, median and 95th-percentile
+//!   errors over the frames with an answer;
+//! - honesty: a frame more than 5° wrong never carries a confidence above 0.5
+//!   (`accuracy::CONFIDENT`), so a consumer that trusts only confident answers is never misled.
+
+use skyframe_horizon::accuracy::{self, Accuracy, CONFIDENT, WRONG_DEG};
+use skyframe_horizon::bench;
+use skyframe_horizon::synth::Degradation;
+
+const SEED: u64 = 5;
+const FRAMES: usize = 30;
+
+struct Bounds {
+    /// Least share of frames within 2° (roll and pitch).
+    within_2deg: f32,
+    /// Largest median error (roll and pitch), degrees.
+    median_deg: f32,
+    /// Largest 95th-percentile error (roll and pitch), degrees.
+    p95_deg: f32,
+}
+
+fn measure(degradation: Degradation) -> Accuracy {
+    let set = bench::synthesise(degradation, 320, 240, FRAMES, SEED);
+    let (answers, _) = bench::run_ours(&set).expect("the detector runs");
+    let result = accuracy::evaluate(&answers, &set.truths);
+    eprintln!("{}: {result:?}", degradation.name());
+    result
+}
+
+fn check(degradation: Degradation, bounds: Bounds) {
+    let a = measure(degradation);
+    let name = degradation.name();
+    assert_eq!(
+        a.wrong_confident, 0,
+        "{name}: {} frames more than {WRONG_DEG}° wrong with confidence above {CONFIDENT}",
+        a.wrong_confident
+    );
+    assert!(
+        a.within_2deg >= bounds.within_2deg,
+        "{name}: {:.2} of frames within 2°, want ≥ {:.2}",
+        a.within_2deg,
+        bounds.within_2deg
+    );
+    assert!(
+        a.roll_median_deg <= bounds.median_deg && a.pitch_median_deg <= bounds.median_deg,
+        "{name}: median errors roll {:.2}° pitch {:.2}°, want ≤ {:.2}°",
+        a.roll_median_deg,
+        a.pitch_median_deg,
+        bounds.median_deg
+    );
+    assert!(
+        a.roll_p95_deg <= bounds.p95_deg && a.pitch_p95_deg <= bounds.p95_deg,
+        "{name}: p95 errors roll {:.2}° pitch {:.2}°, want ≤ {:.2}°",
+        a.roll_p95_deg,
+        a.pitch_p95_deg,
+        bounds.p95_deg
+    );
+}
+
+#[test]
+fn clean() {
+    let bounds = Bounds {
+        within_2deg: 1.0,
+        median_deg: 0.2,
+        p95_deg: 0.3,
+    };
+    check(Degradation::Clean, bounds);
+}
+
+#[test]
+fn sensor_noise() {
+    let bounds = Bounds {
+        within_2deg: 0.95,
+        median_deg: 0.2,
+        p95_deg: 0.5,
+    };
+    check(Degradation::SensorNoise, bounds);
+}
+
+#[test]
+fn transmission_noise() {
+    // Bursts of noise so strong that some frames are skipped (no answer) rather than guessed.
+    let bounds = Bounds {
+        within_2deg: 0.8,
+        median_deg: 0.5,
+        p95_deg: 3.0,
+    };
+    check(Degradation::TransmissionNoise, bounds);
+}
+
+#[test]
+fn white_stripes() {
+    let bounds = Bounds {
+        within_2deg: 0.9,
+        median_deg: 0.2,
+        p95_deg: 1.0,
+    };
+    check(Degradation::WhiteStripes, bounds);
+}
+
+#[test]
+fn black_stripes() {
+    let bounds = Bounds {
+        within_2deg: 0.9,
+        median_deg: 0.2,
+        p95_deg: 1.0,
+    };
+    check(Degradation::BlackStripes, bounds);
+}
+
+#[test]
+fn exposure_and_colour_changes() {
+    // Over-exposed frames clip sky and distant ground alike: the true horizon is not in the
+    // image, and the detector says so with a low confidence (checked) instead of guessing.
+    let bounds = Bounds {
+        within_2deg: 0.75,
+        median_deg: 0.3,
+        p95_deg: 8.0,
+    };
+    check(Degradation::Exposure, bounds);
+}
+
+#[test]
+fn glare() {
+    let bounds = Bounds {
+        within_2deg: 0.9,
+        median_deg: 0.3,
+        p95_deg: 1.0,
+    };
+    check(Degradation::Glare, bounds);
+}
+
+#[test]
+fn roads_and_field_edges() {
+    let bounds = Bounds {
+        within_2deg: 0.95,
+        median_deg: 0.2,
+        p95_deg: 0.5,
+    };
+    check(Degradation::Roads, bounds);
+}
+
+#[test]
+fn clouds() {
+    let bounds = Bounds {
+        within_2deg: 0.95,
+        median_deg: 0.2,
+        p95_deg: 0.5,
+    };
+    check(Degradation::Clouds, bounds);
+}
+
+#[test]
+fn radial_distortion() {
+    let bounds = Bounds {
+        within_2deg: 0.95,
+        median_deg: 0.3,
+        p95_deg: 0.5,
+    };
+    check(Degradation::Distortion, bounds);
+}
