@@ -5,7 +5,7 @@
 
 use crate::bench;
 use crate::check_schedule::check_file;
-use crate::flight::{Devices, FlightPlan, LogSettings, fly, render_flight};
+use crate::flight::{Devices, FlightPlan, LinkPlan, LogSettings, fly, render_flight};
 use crate::host::{RunOptions, TimerCheckConfig, stop_on_signals};
 use crate::platform::{Platform, RtConfig};
 use crate::simflight::VirtualTime;
@@ -115,7 +115,58 @@ pub struct FlightArgs {
     #[arg(long)]
     pub refuse_late_timer: bool,
     #[command(flatten)]
+    pub link: LinkArgs,
+    #[command(flatten)]
     pub realtime: RealtimeArgs,
+}
+
+/// The telemetry link (`docs/link-protocol.md`).
+#[derive(Args, Debug, Clone)]
+pub struct LinkArgs {
+    /// The 32-byte pre-shared key file (64 hex digits, mode 600). Without it a fresh key is
+    /// written into the flight directory (and its path printed).
+    #[arg(long, value_name = "FILE")]
+    pub key: Option<PathBuf>,
+    /// Where telemetry goes (unicast or broadcast). Repeatable.
+    #[arg(long, value_name = "ADDR:PORT")]
+    pub telemetry: Vec<std::net::SocketAddr>,
+    /// Where commands are received (telemetry is sent from here too).
+    #[arg(long, value_name = "ADDR:PORT")]
+    pub commands: Option<std::net::SocketAddr>,
+    /// This airplane's id on the link.
+    #[arg(long, default_value_t = 1)]
+    pub vehicle_id: u16,
+    /// Sign telemetry as well as verifying commands.
+    #[arg(long)]
+    pub sign_telemetry: bool,
+    /// Fly without the link.
+    #[arg(long)]
+    pub no_link: bool,
+}
+
+impl LinkArgs {
+    pub fn plan(&self) -> Result<Option<LinkPlan>, String> {
+        if self.no_link {
+            return Ok(None);
+        }
+        let default = |text: &str| text.parse().map_err(|e| format!("{text}: {e}"));
+        let telemetry = if self.telemetry.is_empty() {
+            vec![default(crate::link::DEFAULT_TELEMETRY)?]
+        } else {
+            self.telemetry.clone()
+        };
+        Ok(Some(LinkPlan {
+            key: self.key.clone(),
+            commands: match self.commands {
+                Some(a) => a,
+                None => default(crate::link::DEFAULT_COMMANDS)?,
+            },
+            commands_is_default: self.commands.is_none(),
+            telemetry,
+            vehicle_id: self.vehicle_id,
+            sign_telemetry: self.sign_telemetry,
+        }))
+    }
 }
 
 #[derive(Args, Debug)]
@@ -398,6 +449,11 @@ fn fly_and_report<P: Platform>(
         FlightPlan {
             log_dir: args.log_dir.as_deref().unwrap_or(&log.dir),
             log: LogSettings::from_config(log, &args.text_log),
+            link: if matches!(devices, Devices::None) {
+                None
+            } else {
+                args.link.plan()?
+            },
             devices,
             options: RunOptions {
                 faults,

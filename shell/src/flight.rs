@@ -18,13 +18,18 @@ use skyframe_core::devices::gps::SentenceKind;
 use skyframe_core::devices::gps::{GpsConfig, GpsFix};
 use skyframe_core::devices::imu::ImuSample;
 use skyframe_core::executive::Task;
+use skyframe_core::link::params::ParamTable;
 use skyframe_core::schedule::FrameTable;
 use skyframe_core::tasks::gps::GpsTask;
 use skyframe_core::tasks::health::HealthTask;
 use skyframe_core::tasks::imu::ImuTask;
 use skyframe_core::tasks::logging::LoggingTask;
 use skyframe_core::tasks::servo::{ComputerCommand, PilotInput, ServoTask};
+use skyframe_core::tasks::telemetry::{
+    LinkShared, Tap, TappedSink, TelemetryConfig, TelemetryTask,
+};
 use skyframe_sim::world::SimWorld;
+use std::cell::{Cell, RefCell};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -55,7 +60,37 @@ pub struct FlightPlan<'a> {
     pub log_dir: &'a Path,
     pub log: LogSettings,
     pub devices: Devices<'a>,
+    /// The telemetry link; `None` flies without one.
+    pub link: Option<LinkPlan>,
     pub options: RunOptions<'a>,
+}
+
+/// How the flight talks to the ground.
+#[derive(Clone, Debug)]
+pub struct LinkPlan {
+    /// The pre-shared key; `None`: a fresh one is written into the flight directory.
+    pub key: Option<PathBuf>,
+    pub commands: std::net::SocketAddr,
+    /// `commands` is the default: when that port is taken (another vehicle on this machine),
+    /// take any free one instead of failing.
+    pub commands_is_default: bool,
+    pub telemetry: Vec<std::net::SocketAddr>,
+    pub vehicle_id: u16,
+    pub sign_telemetry: bool,
+}
+
+/// The link at the end of the flight.
+#[derive(Debug, Serialize)]
+pub struct LinkReport {
+    pub key_file: PathBuf,
+    pub commands_address: String,
+    pub run_id: u32,
+    pub datagrams_in: u64,
+    pub datagrams_out: u64,
+    pub send_errors: u64,
+    pub commands_accepted: u32,
+    pub commands_rejected: u32,
+    pub telemetry_sent: u32,
 }
 
 /// How the flight's logs are written.
@@ -124,6 +159,7 @@ pub struct FlightReport {
     pub log_files: Vec<PathBuf>,
     pub log_streams: Vec<StreamReport>,
     pub devices: Vec<DeviceReport>,
+    pub link: Option<LinkReport>,
 }
 
 /// The log streams of one flight, and their statuses for the report.
@@ -193,6 +229,43 @@ pub fn fly<P: Platform>(
             plan.log_dir.display()
         )
     })?;
+    // The link: key, run id, socket thread.
+    let io_stop = Arc::new(AtomicBool::new(false));
+    let mut link = None;
+    if let Some(plan_link) = &plan.link {
+        let (key_file, key) = match &plan_link.key {
+            Some(path) => (path.clone(), crate::link::load_key(path)?),
+            None => {
+                let (path, key) = crate::link::write_new_key(&flight_dir)?;
+                eprintln!(
+                    "link key: {} (skyframe-ground finds it there)",
+                    path.display()
+                );
+                (path, key)
+            }
+        };
+        let run_id = crate::link::new_run_id()?;
+        let spawned = crate::link::spawn_link(
+            plan_link.commands,
+            plan_link.telemetry.clone(),
+            Arc::clone(&io_stop),
+        );
+        let spawned = match spawned {
+            Err(e) if plan_link.commands_is_default => {
+                let any = std::net::SocketAddr::new(plan_link.commands.ip(), 0);
+                let spawned = crate::link::spawn_link(
+                    any,
+                    plan_link.telemetry.clone(),
+                    Arc::clone(&io_stop),
+                )?;
+                log::warn!("{e}: listening for commands on a free port instead");
+                spawned
+            }
+            other => other?,
+        };
+        link = Some((key_file, key, run_id, spawned, plan_link.clone()));
+    }
+
     let mut streams = Streams {
         writer: LogWriter::new(WriterConfig {
             rotate_bytes: plan.log.rotate_bytes,
@@ -208,7 +281,6 @@ pub fn fly<P: Platform>(
     let health_stream = streams.open("health", TASK_RING_BYTES);
 
     // Device I/O threads, each with its task's log stream.
-    let io_stop = Arc::new(AtomicBool::new(false));
     let mut serial: Vec<SerialDevice> = Vec::new();
     let mut device_ports: Vec<(&'static str, DevicePort, LogStream, u64)> = Vec::new();
     for (name, config, stale_ns) in port_configs {
@@ -263,12 +335,30 @@ pub fn fly<P: Platform>(
     let pilot: LatestSlot<PilotInput> = LatestSlot::new();
     let watchdog_out = LatestSlot::new();
 
-    let mut watchdog = HealthTask::new(&watchdog_out);
-    let mut logging = LoggingTask::new(health_stream, HEALTH_SNAPSHOT_NS);
+    let health_period_ms = Cell::new(0u32);
+    let mode_request = LatestSlot::new();
+    let horizon = LatestSlot::new();
+    let params = RefCell::new(ParamTable::new());
+    let (imu_tap, gps_tap, servo_tap, health_tap) =
+        (Tap::new(), Tap::new(), Tap::new(), Tap::new());
+    let mut watchdog = HealthTask::new(&watchdog_out).with_period(&health_period_ms);
+    let mut logging = LoggingTask::new(
+        TappedSink {
+            inner: health_stream,
+            tap: &health_tap,
+        },
+        HEALTH_SNAPSHOT_NS,
+    );
     let mut imu_task = None;
     let mut gps_task = None;
     let mut servo_task = None;
     for (name, port, log, stale_ns) in device_ports {
+        let tap = match name {
+            "imu" => &imu_tap,
+            "gps" => &gps_tap,
+            _ => &servo_tap,
+        };
+        let log = TappedSink { inner: log, tap };
         match name {
             "imu" => imu_task = Some(ImuTask::new(port, log, stale_ns, &imu_samples)),
             "gps" => {
@@ -285,9 +375,56 @@ pub fn fly<P: Platform>(
         }
     }
 
+    let taps: Vec<Option<&Tap>> = table
+        .tasks
+        .iter()
+        .map(|slot| match slot.name {
+            "imu" if imu_task.is_some() => Some(&imu_tap),
+            "gps" if gps_task.is_some() => Some(&gps_tap),
+            "servo" if servo_task.is_some() => Some(&servo_tap),
+            "logging" => Some(&health_tap),
+            _ => None,
+        })
+        .collect();
+    let duration_ns = plan
+        .options
+        .duration
+        .map_or(0, |d| u64::try_from(d.as_nanos()).unwrap_or(u64::MAX));
+    let mut telemetry_task = None;
+    let mut link_io = None;
+    if let Some((key_file, key, run_id, (port, join, io), plan_link)) = link {
+        let local = io
+            .local
+            .map_or_else(|| plan_link.commands.to_string(), |a| a.to_string());
+        telemetry_task = Some(TelemetryTask::new(
+            port,
+            table,
+            key,
+            TelemetryConfig {
+                vehicle_id: plan_link.vehicle_id,
+                run_id,
+                sign_telemetry: plan_link.sign_telemetry,
+                duration_ns,
+            },
+            LinkShared {
+                taps: &taps,
+                params: &params,
+                mode_request: &mode_request,
+                horizon: &horizon,
+                watchdog: &watchdog_out,
+                health_period_ms: &health_period_ms,
+                stop: plan.options.stop,
+            },
+        ));
+        link_io = Some((key_file, run_id, join, io, local));
+    }
+
     let mut idle = idle_tasks(table.tasks.len());
     let mut real: Vec<(&'static str, &mut dyn Task)> =
         vec![("health", &mut watchdog), ("logging", &mut logging)];
+    if let Some(t) = telemetry_task.as_mut() {
+        real.push(("telemetry", t));
+    }
     if let Some(t) = imu_task.as_mut() {
         real.push(("imu", t));
     }
@@ -336,6 +473,24 @@ pub fn fly<P: Platform>(
             devices.push(device_report(name, None, &stats(name)));
         }
     }
+    let link = link_io.map(|(key_file, run_id, join, io, commands_address)| {
+        let _ = join.join();
+        let counters = telemetry_task
+            .as_ref()
+            .map(|t| *t.counters())
+            .unwrap_or_default();
+        LinkReport {
+            key_file,
+            commands_address,
+            run_id,
+            datagrams_in: io.datagrams_in.load(Ordering::Relaxed),
+            datagrams_out: io.datagrams_out.load(Ordering::Relaxed),
+            send_errors: io.send_errors.load(Ordering::Relaxed),
+            commands_accepted: counters.accepted,
+            commands_rejected: counters.rejected(),
+            telemetry_sent: counters.telemetry_sent,
+        }
+    });
     timing.finish();
     let log_files = writer.finish();
     let summary = result.map_err(|e: HostError| e.to_string())?;
@@ -361,6 +516,7 @@ pub fn fly<P: Platform>(
             })
             .collect(),
         devices,
+        link,
     })
 }
 

@@ -15,6 +15,7 @@ pub mod flight;
 pub mod flightdir;
 pub mod host;
 pub mod idle;
+pub mod link;
 pub mod logwriter;
 pub mod platform;
 pub mod ring;

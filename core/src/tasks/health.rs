@@ -32,6 +32,9 @@ pub struct HealthTask<'a> {
     /// Release counts at the previous check.
     releases_seen: [u64; MAX_TASKS],
     out: &'a LatestSlot<WatchdogReport>,
+    /// Minimum time between checks (ms), changeable over the link; 0: every release.
+    period_ms: Option<&'a core::cell::Cell<u32>>,
+    last_check_ns: Option<u64>,
 }
 
 impl<'a> HealthTask<'a> {
@@ -40,7 +43,16 @@ impl<'a> HealthTask<'a> {
             report: WatchdogReport::default(),
             releases_seen: [0; MAX_TASKS],
             out,
+            period_ms: None,
+            last_check_ns: None,
         }
+    }
+
+    /// Checks at most every `period_ms` (the ground's "health-check period"); the task still
+    /// runs at its frame-table period.
+    pub fn with_period(mut self, period_ms: &'a core::cell::Cell<u32>) -> Self {
+        self.period_ms = Some(period_ms);
+        self
     }
 
     pub fn report(&self) -> &WatchdogReport {
@@ -59,6 +71,13 @@ impl Task for HealthTask<'_> {
     }
 
     fn step(&mut self, cx: &mut TaskContext<'_>) -> Result<(), TaskFault> {
+        let period_ns = u64::from(self.period_ms.map_or(0, core::cell::Cell::get)) * 1_000_000;
+        if let Some(last) = self.last_check_ns
+            && cx.now_ns < last.saturating_add(period_ns)
+        {
+            return Ok(());
+        }
+        self.last_check_ns = Some(cx.now_ns);
         let health = cx.health;
         let mut alive = 0u32;
         let mut stalled = 0u32;

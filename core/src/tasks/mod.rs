@@ -11,6 +11,7 @@ pub mod imu;
 pub mod logging;
 pub mod servo;
 pub mod task_log;
+pub mod telemetry;
 
 #[cfg(test)]
 mod device_tests;

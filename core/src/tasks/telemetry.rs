@@ -1,0 +1,511 @@
+//! The telemetry task: the vehicle's end of the link (`docs/link-protocol.md`).
+//!
+//! Each release it takes the commands the shell's socket thread received, lets the
+//! [`CommandGate`] decide which are authentic, fresh and in range, acts on those (and
+//! acknowledges), then sends what the [`TelemetrySchedule`] says is due: the executive's
+//! status, one task's status in rotation, and each task's data at its own rate.
+//!
+//! A task's data is its latest log record: each task's log sink is wrapped in a
+//! [`TappedSink`], which passes every record on to the log and keeps the latest data block
+//! (and the formats) for telemetry. So telemetry shows exactly what is logged, with the
+//! same column names, and no task has to know about the link.
+
+use crate::comm::{LatestSlot, RecordSink};
+use crate::executive::{Task, TaskContext, TaskFault};
+use crate::link::auth::{CommandGate, GateConfig, LinkKey};
+use crate::link::frame::{Envelope, MAX_DATAGRAM_LEN, encode_datagram};
+use crate::link::messages::{
+    AckResult, Command, CommandAck, ExecutiveStatus, FlightMode, HorizonAttitude, MAX_TASK_VALUES,
+    Message, Name, TaskData, TaskFormat, TaskStatus, Telemetry, Value,
+};
+use crate::link::params::{ParamTable, SetParamResult};
+use crate::link::telemetry::{Due, TelemetrySchedule, VehicleEnvelopes};
+use crate::logfmt::format::Format;
+use crate::logfmt::printf;
+use crate::schedule::FrameTable;
+use crate::tasks::health::WatchdogReport;
+use core::cell::{Cell, RefCell};
+use core::sync::atomic::{AtomicBool, Ordering};
+
+/// Where datagrams come from and go to: the shell's socket thread, through rings.
+pub trait DatagramPort {
+    /// The next received datagram into `buf`; its length, or `None` when none is waiting.
+    fn receive(&mut self, buf: &mut [u8]) -> Option<usize>;
+    /// Queues a datagram for every telemetry destination (and, with `reply`, for the sender
+    /// of the last command received too). `false` when the queue is full.
+    fn send(&mut self, datagram: &[u8], reply: bool) -> bool;
+}
+
+/// Longest data block a tap keeps (the widest shipped format is ~80 bytes).
+pub const TAP_DATA: usize = 192;
+/// Longest format text or column list a tap keeps.
+pub const TAP_TEXT: usize = 256;
+/// Format indices a tap follows per task.
+const TAP_FORMATS: usize = 4;
+
+#[derive(Clone, Debug)]
+struct TapFormat {
+    index: u8,
+    text: heapless::String<TAP_TEXT>,
+    columns: heapless::Vec<u8, TAP_TEXT>,
+}
+
+/// The latest data of one task, as it went to its log.
+#[derive(Default)]
+pub struct Tap {
+    formats: RefCell<heapless::Vec<TapFormat, TAP_FORMATS>>,
+    latest: RefCell<Option<(u8, heapless::Vec<u8, TAP_DATA>)>>,
+    sequence: Cell<u32>,
+}
+
+impl Tap {
+    pub const fn new() -> Self {
+        Self {
+            formats: RefCell::new(heapless::Vec::new()),
+            latest: RefCell::new(None),
+            sequence: Cell::new(0),
+        }
+    }
+
+    fn take_record(&self, record: &[u8]) {
+        let (Some(&kind), Some(&index)) = (record.first(), record.get(1)) else {
+            return;
+        };
+        let body = record.get(4..).unwrap_or_default();
+        match kind {
+            0xFD | 0xFC => {
+                let Ok(mut formats) = self.formats.try_borrow_mut() else {
+                    return;
+                };
+                let at = match formats.iter().position(|f| f.index == index) {
+                    Some(at) => at,
+                    None => {
+                        let fresh = TapFormat {
+                            index,
+                            text: heapless::String::new(),
+                            columns: heapless::Vec::new(),
+                        };
+                        if formats.push(fresh).is_err() {
+                            return;
+                        }
+                        formats.len() - 1
+                    }
+                };
+                if let Some(f) = formats.get_mut(at) {
+                    let text = crate::logfmt::format::trim_nuls(body);
+                    if kind == 0xFD {
+                        f.text.clear();
+                        let _ = f.text.push_str(core::str::from_utf8(text).unwrap_or(""));
+                    } else {
+                        f.columns.clear();
+                        let _ = f
+                            .columns
+                            .extend_from_slice(text.get(..TAP_TEXT).unwrap_or(text));
+                    }
+                }
+            }
+            0xDB => {
+                let data = record.get(12..).unwrap_or_default();
+                let mut kept = heapless::Vec::new();
+                if kept.extend_from_slice(data).is_ok()
+                    && let Ok(mut latest) = self.latest.try_borrow_mut()
+                {
+                    *latest = Some((index, kept));
+                    self.sequence.set(self.sequence.get().wrapping_add(1));
+                }
+            }
+            _ => {}
+        }
+    }
+
+    /// The latest record as link values, with its format index.
+    fn data(&self) -> Option<(u8, heapless::Vec<Value, MAX_TASK_VALUES>)> {
+        let latest = self.latest.try_borrow().ok()?;
+        let (index, data) = latest.as_ref()?;
+        let formats = self.formats.try_borrow().ok()?;
+        let text = &formats.iter().find(|f| f.index == *index)?.text;
+        let format = Format::parse(text).ok()?;
+        let mut values = heapless::Vec::new();
+        let mut at = 0usize;
+        for field in format.fields() {
+            let size = field.ty.size();
+            let bytes = data.get(at..at.checked_add(size)?)?;
+            at += size;
+            let value = match printf::Value::decode(field.ty, bytes)? {
+                printf::Value::I8(v) => Value::I32(i32::from(v)),
+                printf::Value::U8(v) => Value::U32(u32::from(v)),
+                printf::Value::I16(v) => Value::I32(i32::from(v)),
+                printf::Value::U16(v) => Value::U32(u32::from(v)),
+                printf::Value::I32(v) => Value::I32(v),
+                printf::Value::U32(v) => Value::U32(v),
+                printf::Value::I64(v) => Value::F64(v as f64),
+                printf::Value::U64(v) => Value::F64(v as f64),
+                printf::Value::F32(v) => Value::F32(v),
+                printf::Value::F64(v) => Value::F64(v),
+            };
+            if values.push(value).is_err() {
+                break;
+            }
+        }
+        Some((*index, values))
+    }
+
+    /// The column names of the format whose data is sent.
+    fn columns(&self) -> Option<(u8, heapless::Vec<u8, 255>)> {
+        let index = self.latest.try_borrow().ok()?.as_ref()?.0;
+        let formats = self.formats.try_borrow().ok()?;
+        let f = formats.iter().find(|f| f.index == index)?;
+        let mut out = heapless::Vec::new();
+        let _ = out.extend_from_slice(f.columns.get(..255).unwrap_or(&f.columns));
+        Some((index, out))
+    }
+}
+
+/// A task's log sink that also keeps the task's latest data for telemetry.
+pub struct TappedSink<'a, S> {
+    pub inner: S,
+    pub tap: &'a Tap,
+}
+
+impl<S: RecordSink> RecordSink for TappedSink<'_, S> {
+    fn push_record(&mut self, record: &[u8]) -> bool {
+        self.tap.take_record(record);
+        self.inner.push_record(record)
+    }
+}
+
+/// What the telemetry task shares with the rest of the vehicle.
+pub struct LinkShared<'a> {
+    /// One tap per task slot (`None`: the task logs nothing to show).
+    pub taps: &'a [Option<&'a Tap>],
+    pub params: &'a RefCell<ParamTable>,
+    pub mode_request: &'a LatestSlot<FlightMode>,
+    pub horizon: &'a LatestSlot<HorizonAttitude>,
+    pub watchdog: &'a LatestSlot<WatchdogReport>,
+    pub health_period_ms: &'a Cell<u32>,
+    /// Set by a `Stop` command: the shell ends the run cleanly between frames.
+    pub stop: &'a AtomicBool,
+}
+
+pub struct TelemetryConfig {
+    pub vehicle_id: u16,
+    pub run_id: u32,
+    /// Sign telemetry too (commands are always verified).
+    pub sign_telemetry: bool,
+    /// Programmed duration of the run, for the executive status (0: until stopped).
+    pub duration_ns: u64,
+}
+
+/// Datagrams handled per release at most: a flood cannot eat the frame.
+const MAX_COMMANDS_PER_STEP: usize = 8;
+const MAX_SENDS_PER_STEP: usize = 16;
+
+pub struct TelemetryTask<'a, P> {
+    port: P,
+    table: &'static FrameTable,
+    shared: LinkShared<'a>,
+    key: LinkKey,
+    config: TelemetryConfig,
+    gate: CommandGate,
+    schedule: Option<TelemetrySchedule>,
+    envelopes: VehicleEnvelopes,
+    mode: Option<FlightMode>,
+    announced: bool,
+    buf: [u8; MAX_DATAGRAM_LEN],
+}
+
+impl<'a, P: DatagramPort> TelemetryTask<'a, P> {
+    pub fn new(
+        port: P,
+        table: &'static FrameTable,
+        key: LinkKey,
+        config: TelemetryConfig,
+        shared: LinkShared<'a>,
+    ) -> Self {
+        let gate = CommandGate::new(
+            key.clone(),
+            GateConfig {
+                vehicle_id: config.vehicle_id,
+                run_id: config.run_id,
+                task_count: table.tasks.len(),
+            },
+        );
+        Self {
+            port,
+            table,
+            shared,
+            envelopes: VehicleEnvelopes::new(config.vehicle_id, config.run_id),
+            key,
+            config,
+            gate,
+            schedule: None,
+            mode: None,
+            announced: false,
+            buf: [0; MAX_DATAGRAM_LEN],
+        }
+    }
+
+    pub fn counters(&self) -> &crate::link::auth::LinkCounters {
+        self.gate.counters()
+    }
+
+    fn send(&mut self, now_ns: u64, telemetry: Telemetry, reply: bool) {
+        let envelope: Envelope = self.envelopes.next(now_ns);
+        let key = self.config.sign_telemetry.then_some(&self.key);
+        let sent = encode_datagram(
+            &envelope,
+            &Message::Telemetry(telemetry),
+            key,
+            &mut self.buf,
+        )
+        .ok()
+        .is_some_and(|n| self.port.send(self.buf.get(..n).unwrap_or_default(), reply));
+        let c = self.gate.counters_mut();
+        if sent {
+            c.telemetry_sent = c.telemetry_sent.saturating_add(1);
+        } else {
+            c.telemetry_send_failed = c.telemetry_send_failed.saturating_add(1);
+        }
+    }
+
+    fn param_report(&self, index: usize) -> Option<crate::link::messages::ParamValue> {
+        self.shared.params.try_borrow().ok()?.report(index)
+    }
+
+    fn act(
+        &mut self,
+        cx: &TaskContext<'_>,
+        command: &Command,
+        ack: impl Fn(AckResult, Option<Value>) -> CommandAck,
+    ) {
+        let now = cx.now_ns;
+        let (result, in_force) = match *command {
+            Command::SetTelemetryRate {
+                task_index,
+                interval_ms,
+            } => {
+                let ok = self
+                    .schedule
+                    .as_mut()
+                    .is_some_and(|s| s.set_interval(usize::from(task_index), interval_ms, now));
+                (
+                    if ok {
+                        AckResult::Accepted
+                    } else {
+                        AckResult::Refused
+                    },
+                    Some(Value::U32(interval_ms)),
+                )
+            }
+            Command::SetHealthPeriod { period_ms } => {
+                self.shared.health_period_ms.set(period_ms);
+                (AckResult::Accepted, Some(Value::U32(period_ms)))
+            }
+            Command::SetParam { name, value } => {
+                let outcome = self
+                    .shared
+                    .params
+                    .try_borrow_mut()
+                    .map(|mut p| p.set(&name, value))
+                    .unwrap_or(SetParamResult::Unknown);
+                match outcome {
+                    SetParamResult::Accepted { in_force } => (AckResult::Accepted, Some(in_force)),
+                    SetParamResult::OutOfRange { in_force } => {
+                        (AckResult::OutOfRange, Some(in_force))
+                    }
+                    SetParamResult::WrongType { in_force } => {
+                        (AckResult::WrongType, Some(in_force))
+                    }
+                    SetParamResult::Unknown => (AckResult::UnknownParam, None),
+                }
+            }
+            Command::GetParam { name } => {
+                let index = self
+                    .shared
+                    .params
+                    .try_borrow()
+                    .ok()
+                    .and_then(|p| p.iter().position(|q| *q.name() == name));
+                if let Some(report) = index.and_then(|i| self.param_report(i)) {
+                    self.send(now, Telemetry::ParamValue(report), true);
+                    (AckResult::Accepted, Some(report.value))
+                } else {
+                    (AckResult::UnknownParam, None)
+                }
+            }
+            Command::ListParams => {
+                let count = self.shared.params.try_borrow().map_or(0, |p| p.len());
+                for i in 0..count {
+                    if let Some(report) = self.param_report(i) {
+                        self.send(now, Telemetry::ParamValue(report), true);
+                    }
+                }
+                (AckResult::Accepted, None)
+            }
+            Command::RequestMode { mode } => {
+                self.shared.mode_request.publish(mode);
+                self.mode = Some(mode);
+                (AckResult::Accepted, None)
+            }
+            Command::HorizonAttitude(attitude) => {
+                self.shared.horizon.publish(attitude);
+                (AckResult::Accepted, None)
+            }
+            Command::Stop => {
+                self.shared.stop.store(true, Ordering::Relaxed);
+                (AckResult::Accepted, None)
+            }
+        };
+        self.send(now, Telemetry::CommandAck(ack(result, in_force)), true);
+    }
+
+    fn receive_commands(&mut self, cx: &TaskContext<'_>) {
+        let mut datagram = [0u8; MAX_DATAGRAM_LEN];
+        for _ in 0..MAX_COMMANDS_PER_STEP {
+            let Some(n) = self.port.receive(&mut datagram) else {
+                break;
+            };
+            let bytes = datagram.get(..n).unwrap_or_default();
+            let verdict = match self.shared.params.try_borrow() {
+                Ok(params) => self.gate.accept(bytes, cx.now_ns, &params),
+                Err(_) => continue,
+            };
+            match verdict {
+                Ok(accepted) => {
+                    let command = accepted.command;
+                    self.act(cx, &command, |result, value| accepted.ack(result, value));
+                }
+                // Authentic but refused (out of range…): say why. Anything else: silence.
+                Err(rejected) => {
+                    if let Some(ack) = rejected.ack {
+                        self.send(cx.now_ns, Telemetry::CommandAck(ack), true);
+                    }
+                }
+            }
+        }
+    }
+
+    fn task_status(&self, cx: &TaskContext<'_>, index: u8) -> Option<TaskStatus> {
+        let i = usize::from(index);
+        let health = cx.health.task(i)?;
+        let slot = self.table.tasks.get(i)?;
+        let mut status = TaskStatus::from_health(index, health, cx.health.alive(i));
+        status.name = Name::new(slot.name).unwrap_or_default();
+        status.watchdog_misses = self
+            .shared
+            .watchdog
+            .peek()
+            .and_then(|w| w.misses.get(i).copied())
+            .unwrap_or(0);
+        status.log_records_dropped = cx.health.log_dropped(i);
+        status.telemetry_interval_ms = self
+            .schedule
+            .as_ref()
+            .and_then(|s| s.interval_ms(i))
+            .unwrap_or(0);
+        status.budget_ns = slot.budget_ns;
+        status.period_ns = slot.period_ns;
+        Some(status)
+    }
+
+    fn send_due(&mut self, cx: &TaskContext<'_>) {
+        let now = cx.now_ns;
+        for _ in 0..MAX_SENDS_PER_STEP {
+            let Some(due) = self.schedule.as_mut().and_then(|s| s.next_due(now)) else {
+                break;
+            };
+            let tap = |task: u8| self.shared.taps.get(usize::from(task)).copied().flatten();
+            let message = match due {
+                Due::ExecutiveStatus => Some(Telemetry::ExecutiveStatus(ExecutiveStatus {
+                    elapsed_ns: now,
+                    duration_ns: self.config.duration_ns,
+                    mode: self.mode,
+                    task_count: self.table.tasks.len() as u8,
+                    health_period_ms: self.shared.health_period_ms.get(),
+                    frames: cx.health.frames,
+                    link: *self.gate.counters(),
+                })),
+                Due::TaskStatus { task_index } => {
+                    self.task_status(cx, task_index).map(Telemetry::TaskStatus)
+                }
+                Due::TaskFormat { task_index } => {
+                    tap(task_index)
+                        .and_then(Tap::columns)
+                        .map(|(format_index, columns)| {
+                            Telemetry::TaskFormat(TaskFormat {
+                                task_index,
+                                format_index,
+                                columns,
+                            })
+                        })
+                }
+                Due::TaskData { task_index } => {
+                    tap(task_index)
+                        .and_then(Tap::data)
+                        .map(|(format_index, values)| {
+                            Telemetry::TaskData(TaskData {
+                                task_index,
+                                format_index,
+                                values,
+                            })
+                        })
+                }
+            };
+            if let Some(message) = message {
+                self.send(now, message, false);
+            }
+        }
+        // Parameters changed since the last release go out as values, once each.
+        loop {
+            let changed = self
+                .shared
+                .params
+                .try_borrow_mut()
+                .ok()
+                .and_then(|mut p| p.take_changed());
+            let Some(index) = changed else { break };
+            if let Some(report) = self.param_report(index) {
+                self.send(now, Telemetry::ParamValue(report), false);
+            }
+        }
+    }
+}
+
+impl<P: DatagramPort> Task for TelemetryTask<'_, P> {
+    fn init(&mut self, cx: &mut TaskContext<'_>) -> Result<(), TaskFault> {
+        if self.schedule.is_none() {
+            self.schedule = Some(TelemetrySchedule::new(self.table.tasks.len(), cx.now_ns));
+        }
+        Ok(())
+    }
+
+    fn step(&mut self, cx: &mut TaskContext<'_>) -> Result<(), TaskFault> {
+        if !self.announced {
+            // Every task's status at once when the run starts: a ground station already
+            // listening sees the whole vehicle within a second, not after a full rotation.
+            self.announced = true;
+            for index in 0..self.table.tasks.len() {
+                if let Some(status) = self.task_status(cx, index as u8) {
+                    self.send(cx.now_ns, Telemetry::TaskStatus(status), false);
+                }
+            }
+        }
+        self.receive_commands(cx);
+        self.send_due(cx);
+        Ok(())
+    }
+
+    fn shutdown(&mut self, cx: &mut TaskContext<'_>) {
+        // Last word: the executive's final status, so the ground sees the run end.
+        let status = ExecutiveStatus {
+            elapsed_ns: cx.now_ns,
+            duration_ns: self.config.duration_ns,
+            mode: self.mode,
+            task_count: self.table.tasks.len() as u8,
+            health_period_ms: self.shared.health_period_ms.get(),
+            frames: cx.health.frames,
+            link: *self.gate.counters(),
+        };
+        self.send(cx.now_ns, Telemetry::ExecutiveStatus(status), false);
+    }
+}

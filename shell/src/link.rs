@@ -1,0 +1,308 @@
+//! The link's sockets: one UDP socket, bound to the command address, receives the ground's
+//! commands and sends telemetry to every configured destination (so the ground learns where
+//! to send commands from where telemetry comes from). Its thread moves datagrams between the
+//! socket and two rings; the telemetry task (core) never touches a socket.
+
+use skyframe_core::link::auth::LinkKey;
+use skyframe_core::tasks::telemetry::DatagramPort;
+use std::io::Read;
+use std::net::{SocketAddr, UdpSocket};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::thread::JoinHandle;
+use std::time::Duration;
+
+/// Where the link listens and sends when nothing else is said; `skyframe-ground` listens on
+/// the telemetry port by default.
+pub const DEFAULT_COMMANDS: &str = "0.0.0.0:47201";
+pub const DEFAULT_TELEMETRY: &str = "127.0.0.1:47200";
+
+const RING_BYTES: usize = 256 * 1024;
+const MAX_DATAGRAM: usize = 1472;
+
+/// Reads a 32-byte key: 64 hex digits (a newline may follow) or 32 raw bytes. A key others
+/// could read is refused: whoever reads it can fly the airplane.
+pub fn load_key(path: &Path) -> Result<LinkKey, String> {
+    use std::os::unix::fs::PermissionsExt;
+    let meta = std::fs::metadata(path).map_err(|e| format!("key {}: {e}", path.display()))?;
+    if meta.permissions().mode() & 0o077 != 0 {
+        return Err(format!(
+            "key {}: readable by group or others (mode {:o}); chmod 600 it",
+            path.display(),
+            meta.permissions().mode() & 0o777
+        ));
+    }
+    let mut bytes = Vec::new();
+    std::fs::File::open(path)
+        .and_then(|mut f| f.read_to_end(&mut bytes))
+        .map_err(|e| format!("key {}: {e}", path.display()))?;
+    if let Ok(raw) = <[u8; 32]>::try_from(bytes.as_slice()) {
+        return Ok(LinkKey::new(raw));
+    }
+    let text = String::from_utf8_lossy(&bytes);
+    LinkKey::from_hex(text.trim())
+        .ok_or_else(|| format!("key {}: not 64 hex digits or 32 bytes", path.display()))
+}
+
+fn random_bytes<const N: usize>() -> Result<[u8; N], String> {
+    let mut out = [0u8; N];
+    std::fs::File::open("/dev/urandom")
+        .and_then(|mut f| f.read_exact(&mut out))
+        .map_err(|e| format!("no randomness from /dev/urandom: {e}"))?;
+    Ok(out)
+}
+
+/// Writes a fresh random key (hex, mode 600) as `dir/link.key`.
+pub fn write_new_key(dir: &Path) -> Result<(PathBuf, LinkKey), String> {
+    use std::io::Write;
+    use std::os::unix::fs::OpenOptionsExt;
+    let bytes = random_bytes::<32>()?;
+    let path = dir.join("link.key");
+    let hex: String = bytes.iter().map(|b| format!("{b:02x}")).collect();
+    std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .mode(0o600)
+        .open(&path)
+        .and_then(|mut f| f.write_all(format!("{hex}\n").as_bytes()))
+        .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+    Ok((path, LinkKey::new(bytes)))
+}
+
+/// A run id never used before under the same key: random, so restarts do not repeat.
+pub fn new_run_id() -> Result<u32, String> {
+    random_bytes::<4>().map(u32::from_le_bytes)
+}
+
+/// Counters of the socket thread.
+#[derive(Debug, Default)]
+pub struct LinkIo {
+    /// The address commands are received on (the port chosen when asked for port 0).
+    pub local: Option<SocketAddr>,
+    pub datagrams_in: AtomicU64,
+    pub datagrams_out: AtomicU64,
+    /// Sends the OS refused (no route: the link is down; normal when flying away).
+    pub send_errors: AtomicU64,
+    /// Datagrams a full ring had no room for.
+    pub dropped: AtomicU64,
+}
+
+/// The telemetry task's side of the rings.
+pub struct RingDatagrams {
+    rx: rtrb::Consumer<u8>,
+    tx: rtrb::Producer<u8>,
+}
+
+impl DatagramPort for RingDatagrams {
+    fn receive(&mut self, buf: &mut [u8]) -> Option<usize> {
+        // The length first, without consuming it: the datagram may not be whole yet.
+        let len = {
+            let header = self.rx.read_chunk(2).ok()?;
+            let (a, b) = header.as_slices();
+            let mut len = [0u8; 2];
+            for (slot, byte) in len.iter_mut().zip(a.iter().chain(b)) {
+                *slot = *byte;
+            }
+            usize::from(u16::from_le_bytes(len))
+        };
+        let chunk = self.rx.read_chunk(2 + len).ok()?;
+        let (a, b) = chunk.as_slices();
+        let n = len.min(buf.len());
+        for (slot, byte) in buf.iter_mut().zip(a.iter().chain(b).skip(2)) {
+            *slot = *byte;
+        }
+        chunk.commit_all();
+        Some(n)
+    }
+
+    fn send(&mut self, datagram: &[u8], reply: bool) -> bool {
+        let Ok(len) = u16::try_from(datagram.len()) else {
+            return false;
+        };
+        if self.tx.slots() < 3 + datagram.len() {
+            return false;
+        }
+        let Ok(chunk) = self.tx.write_chunk_uninit(3 + datagram.len()) else {
+            return false;
+        };
+        let head = len.to_le_bytes();
+        chunk.fill_from_iter(
+            head.into_iter()
+                .chain([u8::from(reply)])
+                .chain(datagram.iter().copied()),
+        );
+        true
+    }
+}
+
+/// Binds the command socket and starts its thread; ends when `stop` is set, after sending
+/// what is queued.
+pub fn spawn_link(
+    bind: SocketAddr,
+    telemetry: Vec<SocketAddr>,
+    stop: Arc<AtomicBool>,
+) -> Result<(RingDatagrams, JoinHandle<()>, Arc<LinkIo>), String> {
+    let socket = UdpSocket::bind(bind).map_err(|e| format!("--commands {bind}: {e}"))?;
+    socket
+        .set_read_timeout(Some(Duration::from_millis(5)))
+        .map_err(|e| format!("--commands {bind}: {e}"))?;
+    // Telemetry may go to a broadcast address.
+    let _ = socket.set_broadcast(true);
+    let (rx_in, rx_out) = rtrb::RingBuffer::new(RING_BYTES);
+    let (tx_in, tx_out) = rtrb::RingBuffer::new(RING_BYTES);
+    let io = Arc::new(LinkIo {
+        local: socket.local_addr().ok(),
+        ..LinkIo::default()
+    });
+    let thread_io = Arc::clone(&io);
+    let join = std::thread::Builder::new()
+        .name("link".into())
+        .stack_size(256 * 1024)
+        .spawn(move || link_thread(&socket, &telemetry, rx_in, tx_out, &thread_io, &stop))
+        .map_err(|e| format!("cannot start the link thread: {e}"))?;
+    Ok((
+        RingDatagrams {
+            rx: rx_out,
+            tx: tx_in,
+        },
+        join,
+        io,
+    ))
+}
+
+fn link_thread(
+    socket: &UdpSocket,
+    telemetry: &[SocketAddr],
+    mut rx: rtrb::Producer<u8>,
+    mut tx: rtrb::Consumer<u8>,
+    io: &LinkIo,
+    stop: &AtomicBool,
+) {
+    let mut buf = [0u8; MAX_DATAGRAM + 1];
+    let mut last_sender: Option<SocketAddr> = None;
+    loop {
+        let stopping = stop.load(Ordering::Acquire);
+        if let Ok((n, from)) = socket.recv_from(&mut buf) {
+            io.datagrams_in.fetch_add(1, Ordering::Relaxed);
+            last_sender = Some(from);
+            let datagram = buf.get(..n).unwrap_or_default();
+            match (u16::try_from(n), rx.write_chunk_uninit(2 + n)) {
+                (Ok(len), Ok(chunk)) => {
+                    chunk.fill_from_iter(
+                        len.to_le_bytes()
+                            .into_iter()
+                            .chain(datagram.iter().copied()),
+                    );
+                }
+                _ => {
+                    io.dropped.fetch_add(1, Ordering::Relaxed);
+                }
+            }
+        }
+        while tx.slots() >= 3 {
+            let Ok(head) = tx.read_chunk(3) else { break };
+            let (a, b) = head.as_slices();
+            let mut h = [0u8; 3];
+            for (slot, byte) in h.iter_mut().zip(a.iter().chain(b)) {
+                *slot = *byte;
+            }
+            let len = usize::from(u16::from_le_bytes([h[0], h[1]]));
+            let reply = h[2] != 0;
+            head.commit_all();
+            let Ok(body) = tx.read_chunk(len) else { break };
+            let (a, b) = body.as_slices();
+            let mut datagram = Vec::with_capacity(len);
+            datagram.extend_from_slice(a);
+            datagram.extend_from_slice(b);
+            body.commit_all();
+            let replies = last_sender.filter(|s| reply && !telemetry.contains(s));
+            for to in telemetry.iter().chain(replies.iter()) {
+                match socket.send_to(&datagram, to) {
+                    Ok(_) => io.datagrams_out.fetch_add(1, Ordering::Relaxed),
+                    Err(_) => io.send_errors.fetch_add(1, Ordering::Relaxed),
+                };
+            }
+        }
+        if stopping {
+            return;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::os::unix::fs::PermissionsExt;
+
+    #[test]
+    fn keys_load_from_hex_or_raw_and_readable_ones_are_refused() {
+        let dir = std::env::temp_dir().join(format!("skyframe-key-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).expect("dir");
+        let (path, key) = write_new_key(&dir).expect("written");
+        let mode = std::fs::metadata(&path).expect("meta").permissions().mode() & 0o777;
+        assert_eq!(mode, 0o600);
+        let loaded = load_key(&path).expect("loads");
+        assert_eq!(format!("{loaded:?}"), format!("{key:?}"));
+        std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o640)).expect("chmod");
+        let e = load_key(&path).expect_err("group readable");
+        assert!(e.contains("readable by group or others (mode 640)"), "{e}");
+        let raw = dir.join("raw.key");
+        std::fs::write(&raw, [7u8; 32]).expect("write");
+        std::fs::set_permissions(&raw, std::fs::Permissions::from_mode(0o600)).expect("chmod");
+        assert!(load_key(&raw).is_ok());
+        std::fs::write(&raw, b"not a key\n").expect("write");
+        assert!(
+            load_key(&raw)
+                .expect_err("junk")
+                .contains("not 64 hex digits")
+        );
+    }
+
+    #[test]
+    fn datagrams_cross_the_rings_whole_and_in_order() {
+        let stop = Arc::new(AtomicBool::new(false));
+        let ground = UdpSocket::bind("127.0.0.1:0").expect("ground socket");
+        ground
+            .set_read_timeout(Some(Duration::from_secs(2)))
+            .expect("timeout");
+        let (mut port, join, io) = spawn_link(
+            "127.0.0.1:0".parse().expect("addr"),
+            vec![ground.local_addr().expect("addr")],
+            Arc::clone(&stop),
+        )
+        .expect("link");
+        for i in 0..20u8 {
+            assert!(port.send(&[i; 100], false));
+        }
+        let mut buf = [0u8; 2048];
+        let mut from = None;
+        for i in 0..20u8 {
+            let (n, addr) = ground.recv_from(&mut buf).expect("telemetry");
+            assert_eq!(&buf[..n], &[i; 100][..]);
+            from = Some(addr);
+        }
+        // The ground answers to where telemetry came from: the command socket.
+        ground
+            .send_to(b"command", from.expect("vehicle"))
+            .expect("send");
+        let start = std::time::Instant::now();
+        let mut got = [0u8; 64];
+        let n = loop {
+            if let Some(n) = port.receive(&mut got) {
+                break n;
+            }
+            assert!(
+                start.elapsed() < Duration::from_secs(2),
+                "command never arrived"
+            );
+            std::thread::sleep(Duration::from_millis(2));
+        };
+        assert_eq!(&got[..n], b"command");
+        stop.store(true, Ordering::Release);
+        join.join().expect("thread");
+        assert_eq!(io.datagrams_out.load(Ordering::Relaxed), 20);
+        assert_eq!(io.datagrams_in.load(Ordering::Relaxed), 1);
+    }
+}
