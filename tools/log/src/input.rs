@@ -7,8 +7,10 @@ use std::path::{Path, PathBuf};
 use indicatif::{ProgressBar, ProgressStyle};
 use skyframe_core::logfmt::{Event, LogReader, Problem, ProblemKind};
 
-/// The files named on the command line, directories expanded to their files (sorted; not
-/// `*.csv`, not hidden, not recursive) — the seed's "convert every log here" batch script.
+/// The files named on the command line, directories expanded to their files (sorted, not
+/// hidden, not recursive) — the seed's "convert every log here" batch script — less what a
+/// flight directory holds that is not a binary log: CSV (text logs, conversions), the link
+/// key, TOML (vehicle and scenario files). Such a file is still read when named itself.
 pub fn expand(inputs: &[PathBuf]) -> Result<Vec<PathBuf>, String> {
     let mut files = Vec::new();
     for input in inputs {
@@ -22,10 +24,12 @@ pub fn expand(inputs: &[PathBuf]) -> Result<Vec<PathBuf>, String> {
                     .path();
                 let name = path.file_name().map(|n| n.to_string_lossy().into_owned());
                 let hidden = name.as_deref().is_none_or(|n| n.starts_with('.'));
-                let csv = path
-                    .extension()
-                    .is_some_and(|e| e.eq_ignore_ascii_case("csv"));
-                if path.is_file() && !hidden && !csv {
+                let not_a_log = path.extension().is_some_and(|e| {
+                    ["csv", "key", "toml"]
+                        .iter()
+                        .any(|skip| e.eq_ignore_ascii_case(skip))
+                });
+                if path.is_file() && !hidden && !not_a_log {
                     found.push(path);
                 }
             }

@@ -61,6 +61,9 @@ fn directories_convert_beside_the_inputs() {
     let dir = tempfile::tempdir().expect("temp dir");
     std::fs::write(dir.path().join("a.bin"), WHOLE).expect("write");
     std::fs::write(dir.path().join("b.log"), WHOLE).expect("write");
+    // A flight directory's other files are not logs.
+    std::fs::write(dir.path().join("link.key"), "00".repeat(32)).expect("write");
+    std::fs::write(dir.path().join("vehicle.toml"), "[devices]\n").expect("write");
     let output = skyframe_log(&["to-csv", dir.path().to_str().expect("utf-8")]);
     assert_eq!(output.status.code(), Some(0), "stderr: {}", stderr(&output));
     for stem in ["a", "b"] {
