@@ -256,36 +256,11 @@ impl FakeVehicle {
     }
 
     fn task_status(&self, task_index: u8) -> TaskStatus {
-        let name = TASKS
-            .get(usize::from(task_index))
-            .and_then(|t| Name::new(t.0))
-            .unwrap_or_default();
-        let budget_ns = 1_000_000 + u64::from(task_index) * 250_000;
-        TaskStatus {
-            task_index,
-            name,
-            initialised: true,
-            running: true,
-            in_frame: task_index != 6,
-            alive: true,
-            releases: self.releases,
-            overruns_budget: u32::from(task_index == 1) * 3,
-            resets: 0,
-            log_records_dropped: u32::from(task_index == 4),
-            telemetry_interval_ms: self
-                .schedule
-                .interval_ms(usize::from(task_index))
-                .unwrap_or(0),
-            exec_mean_ns: budget_ns / 4,
-            exec_max_ns: budget_ns * 3 / 4,
-            budget_ns,
-            period_ns: if task_index == 1 {
-                200_000_000
-            } else {
-                10_000_000
-            },
-            ..TaskStatus::default()
-        }
+        let interval_ms = self
+            .schedule
+            .interval_ms(usize::from(task_index))
+            .unwrap_or(0);
+        sample_task_status(task_index, interval_ms, self.releases)
     }
 
     fn handle_command(&mut self, datagram: &[u8], from: SocketAddr) {
@@ -414,7 +389,7 @@ fn default_params() -> ParamTable {
 
 /// Made-up but plausible values for a task's format at `t_ns`: a gentle circle at 12 m/s,
 /// banked 15°, over Zürich.
-fn sample_values(task_index: u8, format_index: u8, t_ns: u64) -> heapless::Vec<Value, 32> {
+pub fn sample_values(task_index: u8, format_index: u8, t_ns: u64) -> heapless::Vec<Value, 32> {
     let t = t_ns as f64 * 1e-9;
     let phase = t * 0.1;
     let (s, c) = phase.sin_cos();
@@ -492,4 +467,35 @@ fn sample_values(task_index: u8, format_index: u8, t_ns: u64) -> heapless::Vec<V
         _ => Vec::new(),
     };
     values.into_iter().take(32).collect()
+}
+
+/// A healthy task's status, with a few counters set so that a screen shows them: the
+/// estimator has 3 budget overruns, gps dropped a log record, telemetry is out of frame.
+pub fn sample_task_status(task_index: u8, telemetry_interval_ms: u32, releases: u64) -> TaskStatus {
+    let name = TASKS
+        .get(usize::from(task_index))
+        .and_then(|t| Name::new(t.0))
+        .unwrap_or_default();
+    let budget_ns = 1_000_000 + u64::from(task_index) * 250_000;
+    TaskStatus {
+        task_index,
+        name,
+        initialised: true,
+        running: true,
+        in_frame: task_index != 6,
+        alive: true,
+        releases,
+        overruns_budget: u32::from(task_index == 1) * 3,
+        log_records_dropped: u32::from(task_index == 4),
+        telemetry_interval_ms,
+        exec_mean_ns: budget_ns / 4,
+        exec_max_ns: budget_ns * 3 / 4,
+        budget_ns,
+        period_ns: if task_index == 4 {
+            100_000_000
+        } else {
+            10_000_000
+        },
+        ..TaskStatus::default()
+    }
 }

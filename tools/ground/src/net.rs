@@ -105,6 +105,16 @@ impl GroundLink {
         self.socket.local_addr()
     }
 
+    /// Another handle on the same socket (a receive thread's, while this one sends).
+    pub fn try_clone(&self) -> io::Result<Self> {
+        Ok(Self {
+            socket: self.socket.try_clone()?,
+            key: self.key.clone(),
+            wait: None,
+            buffer: vec![0; MAX_DATAGRAM_LEN + 1],
+        })
+    }
+
     pub fn key(&self) -> Option<&LinkKey> {
         self.key.as_ref()
     }
