@@ -336,7 +336,7 @@ impl App {
             }
             KeyCode::Down | KeyCode::Char('j') => self.move_task(1),
             KeyCode::Up | KeyCode::Char('k') => self.move_task(-1),
-            KeyCode::Char('s') | KeyCode::Char('r') | KeyCode::Char('h') if !self.can_command => {
+            KeyCode::Char('s' | 'r' | 'h' | 'p') if !self.can_command => {
                 self.status = "no link key: commands need --key FILE".to_string();
             }
             KeyCode::Char('s') => match self.vehicle_id() {
@@ -360,6 +360,14 @@ impl App {
                     }
                     None => self.status = "no such task heard yet".to_string(),
                 }
+            }
+            KeyCode::Char('p') => {
+                let vehicle_id = self.vehicle_id()?;
+                return Some(Request {
+                    vehicle_id,
+                    command: Command::ListParams,
+                    description: format!("list parameters of vehicle {vehicle_id}"),
+                });
             }
             KeyCode::Char('h') => {
                 self.input = Input::EditHealthPeriod {
@@ -444,7 +452,7 @@ impl App {
         frame.render_widget(Paragraph::new(prompt), status_area);
         frame.render_widget(
             Paragraph::new(
-                "tab/1-9 tabs  v vehicle  ↑↓ task  r rate  h health period  s stop  q quit",
+                "tab/1-9 tabs  v vehicle  ↑↓ task  r rate  h health period  p parameters  s stop  q quit",
             )
             .style(Style::new().dim()),
             help_area,
@@ -500,8 +508,13 @@ impl App {
 
     fn draw_executive(&self, frame: &mut Frame, area: Rect, vehicle: &VehicleState) {
         let task_rows = vehicle.tasks.len().max(1) as u16;
-        let [table_area, info_area] =
-            Layout::vertical([Constraint::Length(task_rows + 3), Constraint::Min(6)]).areas(area);
+        let [table_area, info_area, lower_area] = Layout::vertical([
+            Constraint::Length(task_rows + 3),
+            Constraint::Length(7),
+            Constraint::Min(3),
+        ])
+        .areas(area);
+        draw_params_and_acks(frame, lower_area, vehicle);
         let header = Row::new([
             "task",
             "I R F A",
@@ -626,7 +639,7 @@ impl App {
                         f.timing_records_dropped
                     )),
                     Line::from(format!(
-                        "vehicle's link: received {} accepted {}  bad crc {} malformed {} unsigned {} bad signature {} wrong run {} replayed {}  telemetry sent {} failed {}",
+                        "vehicle's link: commands received {} accepted {}; refused: bad crc {} malformed {} unsigned {} bad signature {} wrong run {} replayed {}",
                         l.received,
                         l.accepted,
                         l.bad_crc,
@@ -635,6 +648,12 @@ impl App {
                         l.bad_signature,
                         l.wrong_run,
                         l.replayed,
+                    )),
+                    Line::from(format!(
+                        "                out of range {} unknown param {} wrong type {}; telemetry sent {} failed {}",
+                        l.out_of_range,
+                        l.unknown_param,
+                        l.wrong_type,
                         l.telemetry_sent,
                         l.telemetry_send_failed
                     )),
@@ -656,6 +675,61 @@ impl App {
             info_area,
         );
     }
+}
+
+/// The parameters heard (the answer to `params`, or changes) and the latest
+/// acknowledgements: the seed's configuration section.
+fn draw_params_and_acks(frame: &mut Frame, area: Rect, vehicle: &VehicleState) {
+    let [params_area, acks_area] =
+        Layout::horizontal([Constraint::Percentage(60), Constraint::Percentage(40)]).areas(area);
+    let rows: Vec<Row> = vehicle
+        .params
+        .values()
+        .map(|p| {
+            Row::new([
+                p.name.as_str().to_string(),
+                value_text(&p.value),
+                format!("{} … {}", value_text(&p.min), value_text(&p.max)),
+            ])
+        })
+        .collect();
+    let empty = rows.is_empty();
+    let table = Table::new(
+        rows,
+        [
+            Constraint::Length(24),
+            Constraint::Length(12),
+            Constraint::Min(10),
+        ],
+    )
+    .header(Row::new(["parameter", "value", "range"]).style(Style::new().bold()))
+    .block(Block::bordered().title(if empty {
+        " parameters (none heard: p lists them) "
+    } else {
+        " parameters "
+    }));
+    frame.render_widget(table, params_area);
+    let lines: Vec<Line> = vehicle
+        .acks
+        .iter()
+        .rev()
+        .map(|a| {
+            Line::from(format!(
+                "#{} from {} type 0x{:02x}: {}{}",
+                a.command_sequence,
+                a.command_sender_id,
+                a.command_type,
+                ack_result_name(a.result),
+                a.value_in_force
+                    .map(|v| format!(" ({})", value_text(&v)))
+                    .unwrap_or_default()
+            ))
+        })
+        .collect();
+    frame.render_widget(
+        Paragraph::new(lines).block(Block::bordered().title(" command acknowledgements ")),
+        acks_area,
+    );
 }
 
 enum Editing {

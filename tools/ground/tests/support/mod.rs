@@ -1,4 +1,6 @@
 //! A fake vehicle on a real loopback socket and the real binary to talk to it.
+// Each test crate uses only part of this module.
+#![allow(dead_code)]
 
 use skyframe_core::link::auth::LinkKey;
 use skyframe_ground::fake_vehicle::{FakeVehicle, FakeVehicleConfig, FakeVehicleReport};
