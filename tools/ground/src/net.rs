@@ -20,6 +20,9 @@ pub const RESEND_AFTER: Duration = Duration::from_secs(1);
 /// deciding which one a command is for: every vehicle sends a TaskStatus each second.
 pub const DISCOVERY_GRACE: Duration = Duration::from_millis(1200);
 
+/// The receive buffer asked for (the kernel doubles it for its bookkeeping).
+pub const RECEIVE_BUFFER_BYTES: usize = 1 << 20;
+
 /// What one datagram turned out to be.
 // One at a time, gone once applied to the model: boxing the telemetry would only add an
 // allocation per datagram.
@@ -93,6 +96,16 @@ impl GroundLink {
             };
             format!("cannot listen on {address}: {e}{hint}")
         })?;
+        // Every vehicle sends its formats, statuses and data in one burst when it starts, and
+        // the UI's receive thread may be descheduled for a while: the default buffer
+        // (~200 kB, a few hundred datagrams with their overhead) overflows with 20
+        // vehicles. The kernel caps the request at net.core.rmem_max; a smaller buffer
+        // still works, so failure is not an error.
+        let _ = nix::sys::socket::setsockopt(
+            &socket,
+            nix::sys::socket::sockopt::RcvBuf,
+            &RECEIVE_BUFFER_BYTES,
+        );
         Ok(Self {
             socket,
             key,

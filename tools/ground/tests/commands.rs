@@ -200,3 +200,21 @@ fn no_vehicle_heard_times_out_with_exit_1() {
     assert_eq!(output.status.code(), Some(1));
     assert!(stderr(&output).contains("no vehicle heard"));
 }
+
+#[test]
+fn bench_prints_throughput_loss_and_cpu_as_json() {
+    let ground = Ground::new();
+    let output = ground.run(&["bench", "--vehicles", "3", "--seconds", "1.5", "--json"]);
+    assert_eq!(output.status.code(), Some(0), "{}", stderr(&output));
+    let result: serde_json::Value = serde_json::from_str(stdout(&output).trim()).expect("JSON");
+    assert_eq!(result["vehicles_seen"], 3);
+    // 3 vehicles × ~122 datagrams/s (see bench.rs): well over 200/s even on a busy machine.
+    let rate = result["messages_per_s"].as_f64().expect("rate");
+    assert!(rate > 200.0, "{result}");
+    let handled = result["handled"].as_u64().expect("handled");
+    let sent = result["sent"].as_u64().expect("sent");
+    assert!(handled <= sent && handled * 100 >= sent * 95, "{result}");
+    for field in ["loss_percent", "receive_cpu_percent", "process_cpu_percent"] {
+        assert!(result[field].as_f64().is_some(), "{field} in {result}");
+    }
+}
