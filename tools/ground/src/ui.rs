@@ -428,8 +428,8 @@ impl App {
                 "gps" => draw_gps(frame, body, v),
                 "estimator" => draw_estimator(frame, body, v),
                 "servo" => draw_servo(frame, body, v),
-                "imu" => draw_generic(frame, body, v, task, title, &["p", "q", "r"], true),
-                _ => draw_generic(frame, body, v, task, title, &[], false),
+                "imu" => draw_generic(frame, body, v, task, title, &["p", "q", "r"]),
+                _ => draw_generic(frame, body, v, task, title, &[]),
             },
         }
         let prompt = match &self.input {
@@ -895,7 +895,6 @@ fn draw_generic(
     task: &str,
     title: &str,
     preferred: &[&str],
-    _rates: bool,
 ) {
     let Some((_, state)) = vehicle.task_by_name(task) else {
         return waiting(frame, area, task);
@@ -1028,7 +1027,7 @@ fn draw_estimator(frame: &mut Frame, area: Rect, vehicle: &VehicleState) {
         .values()
         .find(|f| f.column_index("roll").is_some())
     else {
-        return draw_generic(frame, area, vehicle, "estimator", "Estimator", &[], false);
+        return draw_generic(frame, area, vehicle, "estimator", "Estimator", &[]);
     };
     let [indicator_area, chart_area] =
         Layout::horizontal([Constraint::Length(44), Constraint::Min(20)]).areas(area);
