@@ -14,6 +14,8 @@ use std::time::{Duration, Instant};
 pub const HISTORY_LEN: usize = 1200;
 /// Acknowledgements remembered per vehicle (the UI shows the last few).
 pub const ACKS_KEPT: usize = 16;
+/// Seconds of per-second arrival counts kept per vehicle (the link chart).
+pub const ARRIVALS_KEPT_S: usize = 120;
 /// A sequence number this far ahead of the last one is taken as a vehicle restart that kept
 /// its run id (it must not, but a gap of 10⁶ datagrams is not "loss" worth reporting).
 const IMPLAUSIBLE_GAP: u32 = 1_000_000;
@@ -149,6 +151,8 @@ pub struct VehicleState {
     pub params: BTreeMap<u16, ParamValue>,
     /// Newest last.
     pub acks: VecDeque<CommandAck>,
+    /// Datagrams per second: link quality over time.
+    pub arrivals: ArrivalCounter,
 }
 
 impl VehicleState {
@@ -166,6 +170,7 @@ impl VehicleState {
             executive: None,
             params: BTreeMap::new(),
             acks: VecDeque::new(),
+            arrivals: ArrivalCounter::new(now),
         }
     }
 
@@ -209,6 +214,58 @@ impl VehicleState {
             }
             None => self.last_sequence = Some(sequence),
         }
+    }
+}
+
+/// Datagrams counted per whole second since a vehicle was first heard.
+#[derive(Clone, Debug)]
+pub struct ArrivalCounter {
+    /// Closed seconds, oldest first, at most [`ARRIVALS_KEPT_S`].
+    closed: VecDeque<u32>,
+    first_seen: Instant,
+    current_second: u64,
+    current_count: u32,
+}
+
+impl ArrivalCounter {
+    pub fn new(now: Instant) -> Self {
+        Self {
+            closed: VecDeque::new(),
+            first_seen: now,
+            current_second: 0,
+            current_count: 0,
+        }
+    }
+
+    pub fn count(&mut self, now: Instant) {
+        self.roll(now);
+        self.current_count = self.current_count.saturating_add(1);
+    }
+
+    /// The counts of the whole seconds up to `now`, oldest first, with the silence since the
+    /// last datagram as zeros.
+    pub fn per_second_until(&self, now: Instant) -> Vec<u32> {
+        let mut rolled = self.clone();
+        rolled.roll(now);
+        rolled.closed.into_iter().collect()
+    }
+
+    /// Closes the seconds before `now`'s.
+    fn roll(&mut self, now: Instant) {
+        let second = now.saturating_duration_since(self.first_seen).as_secs();
+        if second <= self.current_second {
+            return;
+        }
+        let silent = (second - self.current_second - 1).min(ARRIVALS_KEPT_S as u64);
+        let closed = std::iter::once(self.current_count).chain((0..silent).map(|_| 0));
+        for count in closed {
+            if self.closed.len() >= ARRIVALS_KEPT_S {
+                self.closed.pop_front();
+            }
+            self.closed.push_back(count);
+        }
+        self.current_second = second;
+        self.current_count = 0;
     }
 }
 
@@ -275,6 +332,7 @@ impl GroundModel {
         vehicle.last_t_ns = envelope.t_ns;
         vehicle.signed = header.signed;
         vehicle.link.received = vehicle.link.received.saturating_add(1);
+        vehicle.arrivals.count(now);
         vehicle.count_sequence(envelope.sequence);
         match telemetry {
             Telemetry::TaskData(data) => apply_task_data(vehicle, data, history_len),
@@ -470,6 +528,19 @@ mod tests {
             model.vehicle(2).expect("vehicle").seen_ago(t1),
             Duration::ZERO
         );
+    }
+
+    #[test]
+    fn arrivals_are_counted_per_second_and_silence_shows_as_zeros() {
+        let mut model = GroundModel::default();
+        let t0 = Instant::now();
+        let ms = |m: u64| t0 + Duration::from_millis(m);
+        for (seq, at) in [(1, 0), (2, 300), (3, 900), (4, 1100), (5, 3500)] {
+            model.apply(&header(1, 1, seq, 1), &data(0, &[1.0]), addr(1), ms(at));
+        }
+        let arrivals = &model.vehicle(1).expect("vehicle").arrivals;
+        assert_eq!(arrivals.per_second_until(ms(3600)), [3, 1, 0]);
+        assert_eq!(arrivals.per_second_until(ms(6000)), [3, 1, 0, 1, 0, 0]);
     }
 
     #[test]

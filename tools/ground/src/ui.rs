@@ -423,7 +423,7 @@ impl App {
                 Paragraph::new("Listening… no vehicle heard yet.").block(Block::bordered()),
                 body,
             ),
-            (Some(v), Some(Tab::Executive) | None) => self.draw_executive(frame, body, v),
+            (Some(v), Some(Tab::Executive) | None) => self.draw_executive(frame, body, v, now),
             (Some(v), Some(Tab::Task { task, title })) => match task.as_str() {
                 "gps" => draw_gps(frame, body, v),
                 "estimator" => draw_estimator(frame, body, v),
@@ -506,7 +506,7 @@ impl App {
         );
     }
 
-    fn draw_executive(&self, frame: &mut Frame, area: Rect, vehicle: &VehicleState) {
+    fn draw_executive(&self, frame: &mut Frame, area: Rect, vehicle: &VehicleState, now: Instant) {
         let task_rows = vehicle.tasks.len().max(1) as u16;
         let [table_area, info_area, lower_area] = Layout::vertical([
             Constraint::Length(task_rows + 3),
@@ -514,7 +514,11 @@ impl App {
             Constraint::Min(3),
         ])
         .areas(area);
-        draw_params_and_acks(frame, lower_area, vehicle);
+        let [params_acks_area, link_area] =
+            Layout::horizontal([Constraint::Percentage(65), Constraint::Percentage(35)])
+                .areas(lower_area);
+        draw_params_and_acks(frame, params_acks_area, vehicle);
+        draw_arrivals(frame, link_area, vehicle, now);
         let header = Row::new([
             "task",
             "I R F A",
@@ -675,6 +679,38 @@ impl App {
             info_area,
         );
     }
+}
+
+/// Datagrams received per second from this vehicle: gaps are link loss.
+fn draw_arrivals(frame: &mut Frame, area: Rect, vehicle: &VehicleState, now: Instant) {
+    let counts = vehicle.arrivals.per_second_until(now);
+    let n = counts.len() as f64;
+    let points: Vec<(f64, f64)> = counts
+        .iter()
+        .enumerate()
+        .map(|(i, &c)| (i as f64 - n, f64::from(c)))
+        .collect();
+    let high = counts.iter().copied().max().unwrap_or(0).max(1);
+    let last = counts.last().copied().unwrap_or(0);
+    let chart = Chart::new(vec![
+        Dataset::default()
+            .marker(Marker::Braille)
+            .graph_type(GraphType::Line)
+            .style(Style::new().fg(Color::Cyan))
+            .data(&points),
+    ])
+    .block(Block::bordered().title(format!(" link: {last} datagrams/s ")))
+    .x_axis(
+        Axis::default()
+            .bounds([-n.max(2.0), 0.0])
+            .labels([format!("-{n:.0} s"), "now".to_string()]),
+    )
+    .y_axis(
+        Axis::default()
+            .bounds([0.0, f64::from(high)])
+            .labels(["0".to_string(), high.to_string()]),
+    );
+    frame.render_widget(chart, area);
 }
 
 /// The parameters heard (the answer to `params`, or changes) and the latest
@@ -1117,8 +1153,19 @@ fn draw_servo(frame: &mut Frame, area: Rect, vehicle: &VehicleState) {
     };
     let pilot = state.formats.get(&1);
     let computer = state.formats.get(&2);
-    let [bars_area, battery_area] =
-        Layout::vertical([Constraint::Min(10), Constraint::Length(4)]).areas(area);
+    let [bars_area, battery_area, chart_area] = Layout::vertical([
+        Constraint::Length(10),
+        Constraint::Length(4),
+        Constraint::Min(4),
+    ])
+    .areas(area);
+    if let Some(pilot) = pilot {
+        let columns: Vec<usize> = ["aileron", "elevator", "throttle", "rudder"]
+            .iter()
+            .filter_map(|c| pilot.column_index(c))
+            .collect();
+        history_chart(frame, chart_area, "pilot sticks history", pilot, &columns);
+    }
     let channels = ["aileron", "elevator", "throttle", "rudder"];
     let rows = Layout::vertical(vec![Constraint::Length(2); channels.len() + 1]).split(bars_area);
     let mode = pilot

@@ -170,6 +170,8 @@ fn executive_tab_shows_four_lights_counters_and_timing_per_task() {
     );
     assert!(screen.contains("of 600 s"), "{screen}");
     assert!(screen.contains("s: STOP"), "{screen}");
+    // 3 s of 10 Hz data from 8 tasks (6 formats) + statuses: about 66 datagrams a second.
+    assert!(screen.contains("link: 6"), "{screen}");
     // Vehicle list: one vehicle, no loss, just seen.
     let vehicle = line_with(&screen, "vehicle 7");
     assert!(vehicle.contains("loss   0.0%"), "{vehicle}");
@@ -240,6 +242,7 @@ fn servo_tab_has_pilot_and_computer_bars_and_battery_gauges() {
     assert!(screen.contains("avionics battery"), "{screen}");
     assert!(screen.contains("11.80 V (3S)"), "{screen}");
     assert!(screen.contains("5.10 V (1S)"), "{screen}");
+    assert!(screen.contains("pilot sticks history"), "{screen}");
 }
 
 #[test]
