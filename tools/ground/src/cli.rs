@@ -487,7 +487,7 @@ fn send(common: &Common, what: SendWhat) -> Result<(), Exit> {
     let deadline = deadline(common)?;
     let vehicle_id = session.choose_vehicle(common.vehicle, deadline)?;
     let (command, what_text) = match (early, &what) {
-        (Some(command), _) => (command, format!("{what:?}").to_lowercase()),
+        (Some(command), _) => (command, describe(&what)),
         (None, SendWhat::Rate { task, hz }) => {
             let interval_ms = interval_ms_for_hz(*hz)
                 .ok_or_else(|| Exit::usage("rate must be 0 (stop) or between 1/3600 and 20 Hz"))?;
@@ -508,6 +508,18 @@ fn send(common: &Common, what: SendWhat) -> Result<(), Exit> {
         ack_result_name(ack.result)
     );
     Ok(())
+}
+
+fn describe(what: &SendWhat) -> String {
+    match what {
+        SendWhat::Stop => "stop".to_string(),
+        SendWhat::Mode { mode } => format!(
+            "mode {}",
+            crate::json::mode_name(Some(FlightMode::from(*mode)))
+        ),
+        SendWhat::Rate { task, hz } => format!("rate {task} {hz} Hz"),
+        SendWhat::HealthPeriod { period_ms } => format!("health period {period_ms} ms"),
+    }
 }
 
 /// A task's frame-table index from its name (learnt from its TaskStatus) or the index itself.

@@ -93,8 +93,13 @@ fn sequence_numbers_carry_on_across_ground_restarts() {
     }
     let mode = ground.run(&["send", "mode", "auto", "--key", key]);
     assert_eq!(mode.status.code(), Some(0), "{}", stderr(&mode));
+    assert_eq!(stdout(&mode), "vehicle 2: mode auto: accepted\n");
     let period = ground.run(&["send", "health-period", "500", "--key", key]);
     assert_eq!(period.status.code(), Some(0), "{}", stderr(&period));
+    assert_eq!(
+        stdout(&period),
+        "vehicle 2: health period 500 ms: accepted\n"
+    );
     let report = vehicle.finish();
     assert_eq!(report.commands_rejected, 0, "{report:?}");
     let state = std::fs::read_dir(ground.state_dir())
@@ -217,4 +222,27 @@ fn bench_prints_throughput_loss_and_cpu_as_json() {
     for field in ["loss_percent", "receive_cpu_percent", "process_cpu_percent"] {
         assert!(result[field].as_f64().is_some(), "{field} in {result}");
     }
+}
+
+#[test]
+fn a_mode_the_vehicle_refuses_exits_1_with_the_reason() {
+    let ground = Ground::new();
+    let key = ground.write_key("link.key", KEY_HEX, 0o600);
+    let key = path_str(&key);
+    let vehicle = RunningVehicle::start(5, ground.listen, 1000);
+    // The fake vehicle refuses auto while nav.auto_allowed is false (a bool parameter).
+    let set = ground.run(&["set", "nav.auto_allowed", "false", "--key", key]);
+    assert_eq!(set.status.code(), Some(0), "{}", stderr(&set));
+    assert_eq!(stdout(&set), "nav.auto_allowed = false (accepted)\n");
+    let mode = ground.run(&["send", "mode", "auto", "--key", key]);
+    assert_eq!(mode.status.code(), Some(1), "{}", stdout(&mode));
+    assert_eq!(stderr(&mode), "skyframe-ground: vehicle answered refused\n");
+    let unknown = ground.run(&["set", "control.no_such_gain", "1", "--key", key]);
+    assert_eq!(unknown.status.code(), Some(1));
+    assert!(
+        stderr(&unknown).contains("unknown parameter"),
+        "{}",
+        stderr(&unknown)
+    );
+    vehicle.finish();
 }
