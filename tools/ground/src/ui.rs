@@ -1078,8 +1078,9 @@ fn draw_estimator(frame: &mut Frame, area: Rect, vehicle: &VehicleState) {
     history_chart(frame, chart_area, "attitude history", format, &columns);
 }
 
-/// An attitude indicator: the horizon as the pilot sees it, tilted by roll (right wing down
-/// turns the horizon anticlockwise), lowered by pitch (nose up), 1 unit = 10°.
+/// An attitude indicator: the horizon as the pilot sees it. A positive roll (right wing
+/// down) lifts the horizon's right end; a positive pitch (nose up) lowers it; 1 unit = 10°.
+/// The ground side is dotted.
 fn draw_attitude(frame: &mut Frame, area: Rect, roll: f64, pitch: f64, yaw: Option<f64>) {
     let roll = if roll.is_finite() { roll } else { 0.0 };
     let pitch = if pitch.is_finite() { pitch } else { 0.0 };
@@ -1091,37 +1092,60 @@ fn draw_attitude(frame: &mut Frame, area: Rect, roll: f64, pitch: f64, yaw: Opti
             .map(|y| format!(" yaw {:.0}°", y.to_degrees().rem_euclid(360.0)))
             .unwrap_or_default()
     );
-    let offset = -pitch.to_degrees() / 10.0;
-    let (sin, cos) = (-roll).sin_cos();
-    canvas_attitude(frame, area, title, offset, sin, cos);
-}
-
-fn canvas_attitude(frame: &mut Frame, area: Rect, title: String, offset: f64, sin: f64, cos: f64) {
+    // Beyond ±90° of pitch the horizon is off the dial anyway.
+    let offset = (-pitch.to_degrees() / 10.0).clamp(-9.0, 9.0);
+    let (sin, cos) = roll.sin_cos();
+    // Screen point of horizon-frame point (along, up): rotated by the roll.
+    let to_screen = move |along: f64, up: f64| (along * cos - up * sin, along * sin + up * cos);
+    // Horizon-frame height of a screen point: below `offset` is ground.
+    let height = move |x: f64, y: f64| -x * sin + y * cos;
+    const HALF_WIDTH: f64 = 4.0;
+    // Terminal cells are about twice as tall as wide: size the y range so that a unit is as
+    // long up as across, or the roll angle would look steeper than it is.
+    let columns = f64::from(area.width.saturating_sub(2).max(1));
+    let rows = f64::from(area.height.saturating_sub(2).max(1));
+    let half_height = HALF_WIDTH * 2.0 * rows / columns;
+    let inside = move |&(x, y): &(f64, f64)| x.abs() <= HALF_WIDTH && y.abs() <= half_height;
+    let horizon: Vec<(f64, f64)> = (-400..=400)
+        .map(|i| to_screen(f64::from(i) * 0.02, offset))
+        .filter(inside)
+        .collect();
+    let mut ground = Vec::new();
+    let grid_rows = (half_height / 0.25).ceil() as i32;
+    for i in -16..=16 {
+        for j in -grid_rows..=grid_rows {
+            let (x, y) = (f64::from(i) * 0.25, f64::from(j) * 0.25);
+            if height(x, y) < offset - 0.15 {
+                ground.push((x, y));
+            }
+        }
+    }
+    let rungs: Vec<(f64, f64)> = [-2, -1, 1, 2]
+        .into_iter()
+        .flat_map(|rung| {
+            (-20..=20).map(move |i| to_screen(f64::from(i) * 0.03, offset + f64::from(rung)))
+        })
+        .filter(inside)
+        .collect();
     frame.render_widget(
         Canvas::default()
             .block(Block::bordered().title(title))
             .marker(Marker::Braille)
-            .x_bounds([-4.0, 4.0])
-            .y_bounds([-3.0, 3.0])
+            .x_bounds([-HALF_WIDTH, HALF_WIDTH])
+            .y_bounds([-half_height, half_height])
             .paint(move |ctx| {
-                // Horizon and pitch ladder (every 10°), rotated about the centre.
-                for rung in -3..=3 {
-                    let half = if rung == 0 { 8.0 } else { 0.8 };
-                    let y = offset + f64::from(rung);
-                    let (x1, y1) = (-half * cos - y * sin, -half * sin + y * cos);
-                    let (x2, y2) = (half * cos - y * sin, half * sin + y * cos);
-                    ctx.draw(&CanvasLine {
-                        x1,
-                        y1,
-                        x2,
-                        y2,
-                        color: if rung == 0 {
-                            Color::Green
-                        } else {
-                            Color::DarkGray
-                        },
-                    });
-                }
+                ctx.draw(&Points {
+                    coords: &ground,
+                    color: Color::Rgb(140, 90, 40),
+                });
+                ctx.draw(&Points {
+                    coords: &rungs,
+                    color: Color::DarkGray,
+                });
+                ctx.draw(&Points {
+                    coords: &horizon,
+                    color: Color::Green,
+                });
                 // The aircraft symbol stays fixed.
                 for (x1, x2) in [(-1.6, -0.5), (0.5, 1.6)] {
                     ctx.draw(&CanvasLine {

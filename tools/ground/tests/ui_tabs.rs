@@ -112,12 +112,17 @@ impl Script {
             .expect("draw");
         let buffer = terminal.backend().buffer().clone();
         let width = usize::from(buffer.area.width);
-        buffer
+        let screen = buffer
             .content()
             .chunks(width)
             .map(|row| row.iter().map(|c| c.symbol()).collect::<String>())
             .collect::<Vec<_>>()
-            .join("\n")
+            .join("\n");
+        // To look at the screens: SKYFRAME_PRINT_SCREENS=1 cargo test --test ui_tabs -- --nocapture
+        if std::env::var_os("SKYFRAME_PRINT_SCREENS").is_some() {
+            println!("{screen}");
+        }
+        screen
     }
 
     fn key(&mut self, code: KeyCode) -> Option<Request> {
