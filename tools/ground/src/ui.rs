@@ -831,6 +831,14 @@ fn values_table<'a>(
     .block(Block::bordered().title(format!(" {task} latest ")))
 }
 
+/// Beyond this magnitude a value is left out of charts: the chart's scale would lose the
+/// rest (and bounds near f64::MAX overflow the canvas's arithmetic).
+const PLOT_LIMIT: f64 = 1e12;
+
+fn plottable(v: f64) -> bool {
+    v.is_finite() && v.abs() < PLOT_LIMIT
+}
+
 const CHART_COLORS: [Color; 6] = [
     Color::Cyan,
     Color::Yellow,
@@ -864,7 +872,7 @@ fn history_chart(
                         if to_degrees { v.to_degrees() } else { v },
                     )
                 })
-                .filter(|(_, v)| v.is_finite())
+                .filter(|(_, v)| plottable(*v))
                 .collect();
             Some((name, points))
         })
@@ -1012,7 +1020,7 @@ fn draw_gps(frame: &mut Frame, area: Rect, vehicle: &VehicleState) {
     let fixes: Vec<(f64, f64)> = lat
         .iter()
         .zip(lon)
-        .filter(|(a, o)| a.is_finite() && o.is_finite())
+        .filter(|(a, o)| a.abs() <= 90.0 && o.abs() <= 180.0) // only positions on Earth
         .map(|(&a, &o)| (a, o))
         .collect();
     let Some(&(lat0, lon0)) = fixes.first() else {
