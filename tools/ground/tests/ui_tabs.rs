@@ -388,3 +388,19 @@ fn without_a_key_commands_are_refused_on_the_status_line() {
     assert_eq!(script.app.input, Input::Normal);
     assert!(script.screen(script.now(1.0)).contains("no link key"));
 }
+
+#[test]
+fn every_tab_draws_in_small_terminals_without_panicking() {
+    let mut script = Script::new();
+    script.fly(VEHICLE, 2);
+    script.fly(3, 1);
+    for (width, height) in [(20, 8), (60, 15), (80, 24), (1, 1)] {
+        let mut terminal = Terminal::new(TestBackend::new(width, height)).expect("terminal");
+        for tab in 0..script.app.tabs().len() {
+            script.app.tab = tab;
+            terminal
+                .draw(|frame| script.app.draw(frame, script.now(2.0)))
+                .expect("draw");
+        }
+    }
+}
