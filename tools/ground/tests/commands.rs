@@ -246,3 +246,14 @@ fn a_mode_the_vehicle_refuses_exits_1_with_the_reason() {
     );
     vehicle.finish();
 }
+
+#[test]
+fn a_port_already_in_use_is_one_line_and_exit_2() {
+    let ground = Ground::new();
+    let _taken = std::net::UdpSocket::bind(ground.listen).expect("bind");
+    let output = ground.run(&["monitor", "--seconds", "0.1"]);
+    assert_eq!(output.status.code(), Some(2));
+    let message = stderr(&output);
+    assert_eq!(message.lines().count(), 1, "{message}");
+    assert!(message.contains("cannot listen on"), "{message}");
+}
