@@ -733,8 +733,8 @@ fn draw_params_and_acks(frame: &mut Frame, area: Rect, vehicle: &VehicleState) {
     let table = Table::new(
         rows,
         [
-            Constraint::Length(24),
-            Constraint::Length(12),
+            Constraint::Length(20),
+            Constraint::Length(10),
             Constraint::Min(10),
         ],
     )

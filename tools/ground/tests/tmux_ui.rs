@@ -107,11 +107,10 @@ fn the_ui_runs_in_a_terminal_and_stops_a_vehicle_after_confirmation() {
     // Back to the Executive tab; `p` asks for the parameter list, signed with the key.
     tmux.run(&["send-keys", "-t", "ui", "1"]);
     tmux.run(&["send-keys", "-t", "ui", "p"]);
-    let params = tmux.wait_for("the parameter list", |s| s.contains("control.roll_gain"));
-    assert!(
-        params.contains("list parameters of vehicle 9: accepted"),
-        "{params}"
-    );
+    let params = tmux.wait_for("the parameter list and its acknowledgement", |s| {
+        s.contains("control.roll_gain") && s.contains("list parameters of vehicle 9: accepted")
+    });
+    println!("Executive tab after p:\n{params}");
 
     tmux.run(&["send-keys", "-t", "ui", "s"]);
     tmux.wait_for("the stop confirmation", |s| s.contains("STOP vehicle 9?"));
