@@ -204,6 +204,7 @@ impl VehicleState {
                 let gap = sequence - last - 1;
                 if gap < IMPLAUSIBLE_GAP {
                     self.link.missed = self.link.missed.saturating_add(u64::from(gap));
+                    self.arrivals.missed(gap);
                 }
                 self.last_sequence = Some(sequence);
             }
@@ -211,20 +212,29 @@ impl VehicleState {
                 self.link.late = self.link.late.saturating_add(1);
                 // It was counted missed when the gap opened; it arrived after all.
                 self.link.missed = self.link.missed.saturating_sub(1);
+                self.arrivals.recovered();
             }
             None => self.last_sequence = Some(sequence),
         }
     }
 }
 
-/// Datagrams counted per whole second since a vehicle was first heard.
+/// One second of a vehicle's link: datagrams received, and sequence numbers skipped.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct LinkSecond {
+    pub received: u32,
+    pub missed: u32,
+}
+
+/// A vehicle's link per whole second since it was first heard: the chart, and the loss over
+/// the last seconds (the run's total hides an outage that is happening now).
 #[derive(Clone, Debug)]
 pub struct ArrivalCounter {
     /// Closed seconds, oldest first, at most [`ARRIVALS_KEPT_S`].
-    closed: VecDeque<u32>,
+    closed: VecDeque<LinkSecond>,
     first_seen: Instant,
     current_second: u64,
-    current_count: u32,
+    current: LinkSecond,
 }
 
 impl ArrivalCounter {
@@ -233,21 +243,50 @@ impl ArrivalCounter {
             closed: VecDeque::new(),
             first_seen: now,
             current_second: 0,
-            current_count: 0,
+            current: LinkSecond::default(),
         }
     }
 
     pub fn count(&mut self, now: Instant) {
         self.roll(now);
-        self.current_count = self.current_count.saturating_add(1);
+        self.current.received = self.current.received.saturating_add(1);
     }
 
-    /// The counts of the whole seconds up to `now`, oldest first, with the silence since the
-    /// last datagram as zeros.
+    /// Sequence numbers found skipped by the datagram just counted.
+    fn missed(&mut self, gap: u32) {
+        self.current.missed = self.current.missed.saturating_add(gap);
+    }
+
+    /// A datagram counted missed arrived late after all (credited to this second).
+    fn recovered(&mut self) {
+        self.current.missed = self.current.missed.saturating_sub(1);
+    }
+
+    /// Datagrams received in each whole second up to `now`, oldest first, with the
+    /// silence since the last datagram as zeros.
     pub fn per_second_until(&self, now: Instant) -> Vec<u32> {
         let mut rolled = self.clone();
         rolled.roll(now);
-        rolled.closed.into_iter().collect()
+        rolled.closed.iter().map(|s| s.received).collect()
+    }
+
+    /// Loss over the last `seconds` whole seconds and the current one, from sequence gaps;
+    /// `None` if nothing was received or missed then. A link gone silent shows no loss here
+    /// until the next datagram reveals the gap: "last seen" says that.
+    pub fn recent_loss_percent(&self, now: Instant, seconds: usize) -> Option<f64> {
+        let mut rolled = self.clone();
+        rolled.roll(now);
+        let recent = rolled
+            .closed
+            .iter()
+            .rev()
+            .take(seconds)
+            .chain(std::iter::once(&rolled.current));
+        let (received, missed) = recent.fold((0u64, 0u64), |(r, m), s| {
+            (r + u64::from(s.received), m + u64::from(s.missed))
+        });
+        let expected = received + missed;
+        (expected > 0).then(|| 100.0 * missed as f64 / expected as f64)
     }
 
     /// Closes the seconds before `now`'s.
@@ -257,15 +296,16 @@ impl ArrivalCounter {
             return;
         }
         let silent = (second - self.current_second - 1).min(ARRIVALS_KEPT_S as u64);
-        let closed = std::iter::once(self.current_count).chain((0..silent).map(|_| 0));
-        for count in closed {
+        let closed =
+            std::iter::once(self.current).chain((0..silent).map(|_| LinkSecond::default()));
+        for link_second in closed {
             if self.closed.len() >= ARRIVALS_KEPT_S {
                 self.closed.pop_front();
             }
-            self.closed.push_back(count);
+            self.closed.push_back(link_second);
         }
         self.current_second = second;
-        self.current_count = 0;
+        self.current = LinkSecond::default();
     }
 }
 
@@ -541,6 +581,32 @@ mod tests {
         let arrivals = &model.vehicle(1).expect("vehicle").arrivals;
         assert_eq!(arrivals.per_second_until(ms(3600)), [3, 1, 0]);
         assert_eq!(arrivals.per_second_until(ms(6000)), [3, 1, 0, 1, 0, 0]);
+    }
+
+    #[test]
+    fn recent_loss_forgets_an_old_outage() {
+        let mut model = GroundModel::default();
+        let t0 = Instant::now();
+        let ms = |m: u64| t0 + Duration::from_millis(m);
+        // Second 0: sequences 1..=10 with 5 lost; then 20 s later, 10 in a row.
+        for seq in [1, 3, 5, 7, 9, 10] {
+            model.apply(&header(1, 1, seq, 1), &data(0, &[1.0]), addr(1), ms(100));
+        }
+        let vehicle = model.vehicle(1).expect("vehicle");
+        let recent = vehicle.arrivals.recent_loss_percent(ms(500), 10);
+        assert!(
+            recent.is_some_and(|l| (l - 40.0).abs() < 1e-9),
+            "{recent:?}"
+        );
+        for seq in 11..=20 {
+            model.apply(&header(1, 1, seq, 1), &data(0, &[1.0]), addr(1), ms(20_000));
+        }
+        let vehicle = model.vehicle(1).expect("vehicle");
+        assert_eq!(
+            vehicle.arrivals.recent_loss_percent(ms(20_500), 10),
+            Some(0.0)
+        );
+        assert!((vehicle.link.loss_percent() - 20.0).abs() < 1e-9);
     }
 
     #[test]

@@ -36,6 +36,8 @@ pub const TASK_TABS: [(&str, &str); 5] = [
 ];
 /// Not heard for this long: the vehicle list says the link is lost (it resumes by itself).
 pub const LINK_LOST_AFTER: Duration = Duration::from_secs(3);
+/// The vehicle list's recent loss is over this many seconds.
+pub const RECENT_LOSS_S: usize = 10;
 /// A command from the UI with no acknowledgement after this long is reported unanswered.
 pub const ACK_WAIT: Duration = Duration::from_secs(3);
 /// Battery gauges run from empty to full at these per-cell voltages (LiPo), cells guessed
@@ -488,11 +490,14 @@ impl App {
                     };
                     Line::from(vec![
                         Span::raw(format!(
-                            "{marker} vehicle {:<5} {:<21} run {:08x}  {:<9}  loss {:5.1}%  {refused}",
+                            "{marker} vehicle {:<5} {:<21} run {:08x} {:<9} loss {}/10s {:.1}%/run  {refused}",
                             v.id,
                             v.address.to_string(),
                             v.run_id,
                             mode,
+                            v.arrivals
+                                .recent_loss_percent(now, RECENT_LOSS_S)
+                                .map_or("   –  ".to_string(), |l| format!("{l:5.1}%")),
                             v.link.loss_percent(),
                         )),
                         seen,

@@ -179,7 +179,7 @@ fn executive_tab_shows_four_lights_counters_and_timing_per_task() {
     assert!(screen.contains("link: 6"), "{screen}");
     // Vehicle list: one vehicle, no loss, just seen.
     let vehicle = line_with(&screen, "vehicle 7");
-    assert!(vehicle.contains("loss   0.0%"), "{vehicle}");
+    assert!(vehicle.contains("loss   0.0%/10s 0.0%/run"), "{vehicle}");
     assert!(vehicle.contains("last seen"), "{vehicle}");
 }
 
