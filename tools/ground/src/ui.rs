@@ -11,7 +11,7 @@
 use crate::cli::{ack_result_name, interval_ms_for_hz, value_text};
 use crate::json::mode_name;
 use crate::model::{FormatState, GroundModel, VehicleState, value_as_f64};
-use crate::net::{CommandTarget, Received, Session, apply};
+use crate::net::{CommandTarget, RESEND_AFTER, Received, Session, apply};
 use ratatui::Frame;
 use ratatui::crossterm::event::{self, Event, KeyCode, KeyEvent, KeyEventKind, KeyModifiers};
 use ratatui::layout::{Constraint, Layout, Rect};
@@ -38,8 +38,9 @@ pub const TASK_TABS: [(&str, &str); 5] = [
 pub const LINK_LOST_AFTER: Duration = Duration::from_secs(3);
 /// The vehicle list's recent loss is over this many seconds.
 pub const RECENT_LOSS_S: usize = 10;
-/// A command from the UI with no acknowledgement after this long is reported unanswered.
-pub const ACK_WAIT: Duration = Duration::from_secs(3);
+/// A command from the UI with no acknowledgement after this long is reported unanswered
+/// (sent every [`RESEND_AFTER`] until then).
+pub const ACK_WAIT: Duration = Duration::from_secs(5);
 /// Battery gauges run from empty to full at these per-cell voltages (LiPo), cells guessed
 /// from the voltage itself: a gauge, not a fuel computer.
 const CELL_EMPTY_V: f64 = 3.3;
@@ -91,13 +92,15 @@ pub struct Request {
     pub description: String,
 }
 
+/// A command sent and not yet answered: every sequence number it went out with (it is
+/// resent with a new one each [`RESEND_AFTER`], as the protocol asks of the ground).
 #[derive(Clone, Debug)]
 struct Pending {
-    vehicle_id: u16,
+    request: Request,
     sender_id: u8,
-    sequence: u32,
-    description: String,
-    sent_at: Instant,
+    sequences: Vec<u32>,
+    first_sent: Instant,
+    last_sent: Instant,
 }
 
 pub struct App {
@@ -172,27 +175,45 @@ impl App {
         apply(&mut self.model, received, now);
     }
 
-    /// Notes a command sent, to report its acknowledgement when it comes.
+    /// Notes a command sent, to report its acknowledgement when it comes. A request equal
+    /// to the one pending is its resend.
     pub fn sent(&mut self, request: &Request, sender_id: u8, sequence: u32, now: Instant) {
-        self.status = format!("{}: sent, waiting for the vehicle…", request.description);
-        self.pending = Some(Pending {
-            vehicle_id: request.vehicle_id,
-            sender_id,
-            sequence,
-            description: request.description.clone(),
-            sent_at: now,
-        });
+        match &mut self.pending {
+            Some(pending) if pending.request == *request => {
+                pending.sequences.push(sequence);
+                pending.last_sent = now;
+                self.status = format!(
+                    "{}: sent again (try {}), waiting for the vehicle…",
+                    request.description,
+                    pending.sequences.len()
+                );
+            }
+            _ => {
+                self.status = format!("{}: sent, waiting for the vehicle…", request.description);
+                self.pending = Some(Pending {
+                    request: request.clone(),
+                    sender_id,
+                    sequences: vec![sequence],
+                    first_sent: now,
+                    last_sent: now,
+                });
+            }
+        }
     }
 
-    /// Reports the pending command's acknowledgement, or that none came.
-    pub fn tick(&mut self, now: Instant) {
-        let Some(pending) = &self.pending else {
-            return;
-        };
+    /// Reports the pending command's acknowledgement, or that none came; returns the
+    /// command to send again when it is due for a resend.
+    pub fn tick(&mut self, now: Instant) -> Option<Request> {
+        let pending = self.pending.as_ref()?;
         let ack = self
             .model
-            .vehicle(pending.vehicle_id)
-            .and_then(|v| v.ack_for(pending.sender_id, pending.sequence));
+            .vehicle(pending.request.vehicle_id)
+            .and_then(|v| {
+                pending
+                    .sequences
+                    .iter()
+                    .find_map(|&s| v.ack_for(pending.sender_id, s))
+            });
         if let Some(ack) = ack {
             let value = ack
                 .value_in_force
@@ -200,19 +221,27 @@ impl App {
                 .unwrap_or_default();
             self.status = format!(
                 "{}: {}{value}",
-                pending.description,
+                pending.request.description,
                 ack_result_name(ack.result)
             );
             if ack.result != AckResult::Accepted {
                 self.status.push_str(" (nothing changed)");
             }
             self.pending = None;
-        } else if now.saturating_duration_since(pending.sent_at) >= ACK_WAIT {
+            None
+        } else if now.saturating_duration_since(pending.first_sent) >= ACK_WAIT {
             self.status = format!(
-                "{}: no answer from vehicle {} (lost, or the key is wrong)",
-                pending.description, pending.vehicle_id
+                "{}: no answer from vehicle {} after {} tries (lost, or the key is wrong)",
+                pending.request.description,
+                pending.request.vehicle_id,
+                pending.sequences.len()
             );
             self.pending = None;
+            None
+        } else if now.saturating_duration_since(pending.last_sent) >= RESEND_AFTER {
+            Some(pending.request.clone())
+        } else {
+            None
         }
     }
 
@@ -1329,16 +1358,22 @@ pub fn run_terminal(session: Session, vehicle: Option<u16>) -> std::io::Result<(
                 app.apply(&received, at);
             }
             let now = Instant::now();
-            app.tick(now);
+            let resend = app.tick(now);
             terminal.draw(|frame| app.draw(frame, now))?;
-            if !event::poll(Duration::from_millis(100))? {
-                continue;
-            }
-            let Event::Key(key) = event::read()? else {
-                continue;
-            };
-            let Some(request) = app.handle_key(key) else {
-                continue;
+            let request = match resend {
+                Some(request) => request,
+                None => {
+                    if !event::poll(Duration::from_millis(100))? {
+                        continue;
+                    }
+                    let Event::Key(key) = event::read()? else {
+                        continue;
+                    };
+                    let Some(request) = app.handle_key(key) else {
+                        continue;
+                    };
+                    request
+                }
             };
             let Some(sender) = sender.as_mut() else {
                 app.status = "no link key: commands need --key FILE".to_string();

@@ -316,6 +316,41 @@ fn stop_asks_for_confirmation_and_only_y_sends_it() {
 }
 
 #[test]
+fn an_unanswered_command_is_resent_each_second_then_reported() {
+    let mut script = Script::new();
+    script.fly(VEHICLE, 1);
+    script.key(KeyCode::Char('s'));
+    let request = script.key(KeyCode::Char('y')).expect("stop");
+    script.app.sent(&request, 1, 10, script.now(1.0));
+    assert_eq!(script.app.tick(script.now(1.5)), None);
+    let again = script.app.tick(script.now(2.0)).expect("resent after 1 s");
+    assert_eq!(again, request);
+    script.app.sent(&again, 1, 11, script.now(2.0));
+    assert!(script.app.status.contains("try 2"), "{}", script.app.status);
+    // The answer to the second try settles it.
+    let ack = CommandAck {
+        command_sender_id: 1,
+        command_sequence: 11,
+        command_type: message_type::STOP,
+        result: AckResult::Accepted,
+        value_in_force: None,
+    };
+    script.send(VEHICLE, 2_100_000_000, Telemetry::CommandAck(ack));
+    assert_eq!(script.app.tick(script.now(2.2)), None);
+    assert_eq!(script.app.status, "stop vehicle 7: accepted");
+    // No answer at all: after 5 s it says so and stops trying.
+    script.key(KeyCode::Char('s'));
+    let request = script.key(KeyCode::Char('y')).expect("stop");
+    script.app.sent(&request, 1, 12, script.now(3.0));
+    assert_eq!(script.app.tick(script.now(8.0)), None);
+    assert!(
+        script.app.status.contains("no answer"),
+        "{}",
+        script.app.status
+    );
+}
+
+#[test]
 fn r_edits_the_selected_tasks_telemetry_rate() {
     let mut script = Script::new();
     script.fly(VEHICLE, 1);
