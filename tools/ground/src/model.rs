@@ -116,6 +116,9 @@ pub struct LinkStats {
     pub bad_signature: u64,
     /// From this vehicle's address, refused: not a valid datagram.
     pub malformed: u64,
+    /// Refused: unsigned, claiming to be a vehicle that has sent telemetry signed with our
+    /// key (a forgery, or a downgrade).
+    pub unsigned: u64,
 }
 
 impl LinkStats {
@@ -143,6 +146,10 @@ pub struct VehicleState {
     pub last_sequence: Option<u32>,
     /// Whether its latest telemetry was signed (and verified, when we have the key).
     pub signed: bool,
+    /// It has sent telemetry that verified under our key: from then on its unsigned
+    /// telemetry is refused, so nobody can impersonate it (and divert our commands to
+    /// their address) by sending unsigned datagrams in its name.
+    pub signed_verified: bool,
     pub link: LinkStats,
     /// By task index.
     pub tasks: BTreeMap<u8, TaskState>,
@@ -165,6 +172,7 @@ impl VehicleState {
             last_t_ns: 0,
             last_sequence: None,
             signed: false,
+            signed_verified: false,
             link: LinkStats::default(),
             tasks: BTreeMap::new(),
             executive: None,
@@ -326,6 +334,9 @@ pub struct GroundModel {
     /// Commands (or anything else not telemetry) heard on the ground's port: another ground
     /// station sharing a broadcast address.
     pub ignored_commands: u64,
+    /// The datagrams were decoded with our key (`Verify::IfSigned`): a signed one has
+    /// verified. Without a key, a tag proves nothing and signing is not enforced.
+    pub verifies_signatures: bool,
 }
 
 impl Default for GroundModel {
@@ -341,20 +352,28 @@ impl GroundModel {
             history_len: history_len.max(1),
             unattributed: LinkStats::default(),
             ignored_commands: 0,
+            verifies_signatures: false,
         }
     }
 
-    /// Takes one decoded telemetry datagram. Returns the vehicle id it updated.
+    /// Takes one decoded telemetry datagram. Returns the vehicle id it updated, or `None`
+    /// if it was refused (unsigned, from a vehicle known to sign).
     pub fn apply(
         &mut self,
         header: &Header,
         telemetry: &Telemetry,
         from: SocketAddr,
         now: Instant,
-    ) -> u16 {
+    ) -> Option<u16> {
         let envelope = header.envelope;
         let id = envelope.vehicle_id;
         let history_len = self.history_len;
+        if self.verifies_signatures && !header.signed {
+            if let Some(vehicle) = self.vehicles.get_mut(&id).filter(|v| v.signed_verified) {
+                vehicle.link.unsigned = vehicle.link.unsigned.saturating_add(1);
+                return None;
+            }
+        }
         let vehicle = self
             .vehicles
             .entry(id)
@@ -371,6 +390,7 @@ impl GroundModel {
         vehicle.last_seen = now;
         vehicle.last_t_ns = envelope.t_ns;
         vehicle.signed = header.signed;
+        vehicle.signed_verified |= self.verifies_signatures && header.signed;
         vehicle.link.received = vehicle.link.received.saturating_add(1);
         vehicle.arrivals.count(now);
         vehicle.count_sequence(envelope.sequence);
@@ -393,7 +413,7 @@ impl GroundModel {
                 vehicle.acks.push_back(*ack);
             }
         }
-        id
+        Some(id)
     }
 
     /// Counts a datagram that failed to decode against the vehicle at its address, if any.
@@ -408,7 +428,8 @@ impl GroundModel {
         };
         let counter = match refused.error {
             FrameError::BadCrc => &mut stats.bad_crc,
-            FrameError::BadSignature | FrameError::Unsigned => &mut stats.bad_signature,
+            FrameError::BadSignature => &mut stats.bad_signature,
+            FrameError::Unsigned => &mut stats.unsigned,
             FrameError::Malformed => &mut stats.malformed,
         };
         *counter = counter.saturating_add(1);
@@ -607,6 +628,43 @@ mod tests {
             Some(0.0)
         );
         assert!((vehicle.link.loss_percent() - 20.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn once_a_vehicle_signs_with_our_key_its_unsigned_telemetry_is_refused() {
+        let mut model = GroundModel {
+            verifies_signatures: true,
+            ..GroundModel::default()
+        };
+        let now = Instant::now();
+        let unsigned = header(4, 1, 1, 1);
+        assert_eq!(
+            model.apply(&unsigned, &data(0, &[1.0]), addr(1), now),
+            Some(4)
+        );
+        let signed = Header {
+            signed: true,
+            ..header(4, 1, 2, 1)
+        };
+        assert_eq!(
+            model.apply(&signed, &data(0, &[2.0]), addr(1), now),
+            Some(4)
+        );
+        // Someone else, unsigned, in vehicle 4's name from another address: refused, and
+        // commands still go to the real vehicle.
+        let forged = header(4, 1, 3, 1);
+        assert_eq!(model.apply(&forged, &data(0, &[9.0]), addr(66), now), None);
+        let vehicle = model.vehicle(4).expect("vehicle");
+        assert_eq!(vehicle.address, addr(1));
+        assert_eq!(vehicle.link.unsigned, 1);
+        assert_eq!(vehicle.tasks[&0].formats[&1].latest, [Value::F32(2.0)]);
+        // Without a key nothing is enforced (a tag we cannot check proves nothing).
+        let mut keyless = GroundModel::default();
+        keyless.apply(&signed, &data(0, &[2.0]), addr(1), now);
+        assert_eq!(
+            keyless.apply(&forged, &data(0, &[9.0]), addr(66), now),
+            Some(4)
+        );
     }
 
     #[test]

@@ -234,9 +234,13 @@ pub struct Session {
 
 impl Session {
     pub fn new(link: GroundLink, sender: Option<CommandSender>) -> Self {
+        let model = GroundModel {
+            verifies_signatures: link.key().is_some(),
+            ..GroundModel::default()
+        };
         Self {
             link,
-            model: GroundModel::default(),
+            model,
             sender,
         }
     }

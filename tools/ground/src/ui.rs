@@ -511,7 +511,8 @@ impl App {
                     );
                     let mode = v.executive.map_or("?", |e| mode_name(e.mode));
                     let marker = if Some(v.id) == selected { "▶" } else { " " };
-                    let refused = v.link.bad_crc + v.link.bad_signature + v.link.malformed;
+                    let refused =
+                        v.link.bad_crc + v.link.bad_signature + v.link.malformed + v.link.unsigned;
                     let refused = if refused > 0 {
                         format!("refused {refused}  ")
                     } else {
@@ -696,14 +697,15 @@ impl App {
                         l.telemetry_send_failed
                     )),
                     Line::from(format!(
-                        "ground's link: received {}  missed {} ({:.1}%)  late {}  refused: bad crc {} bad signature {} malformed {}",
+                        "ground's link: received {}  missed {} ({:.1}%)  late {}  refused: bad crc {} bad signature {} malformed {} unsigned {}",
                         vehicle.link.received,
                         vehicle.link.missed,
                         vehicle.link.loss_percent(),
                         vehicle.link.late,
                         vehicle.link.bad_crc,
                         vehicle.link.bad_signature,
-                        vehicle.link.malformed
+                        vehicle.link.malformed,
+                        vehicle.link.unsigned
                     )),
                 ]
             }

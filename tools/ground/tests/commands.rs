@@ -257,3 +257,44 @@ fn a_port_already_in_use_is_one_line_and_exit_2() {
     assert_eq!(message.lines().count(), 1, "{message}");
     assert!(message.contains("cannot listen on"), "{message}");
 }
+
+#[test]
+fn signed_telemetry_verifies_with_the_key_and_is_refused_with_another() {
+    let ground = Ground::new();
+    let right = ground.write_key("right.key", KEY_HEX, 0o600);
+    let wrong = ground.write_key("wrong.key", &"cd".repeat(32), 0o600);
+    let vehicle = RunningVehicle::start_signed(6, ground.listen, 200);
+    let lines = |key: &std::path::Path| -> Vec<serde_json::Value> {
+        let output = ground.run(&[
+            "monitor",
+            "--json",
+            "--seconds",
+            "1",
+            "--key",
+            path_str(key),
+        ]);
+        assert_eq!(output.status.code(), Some(0), "{}", stderr(&output));
+        stdout(&output)
+            .lines()
+            .map(|l| serde_json::from_str(l).expect("JSON"))
+            .collect()
+    };
+    let good = lines(&right);
+    assert!(!good.is_empty());
+    assert!(
+        good.iter()
+            .all(|o| o["signed"] == true && o["vehicle"] == 6),
+        "{good:?}"
+    );
+    let bad = lines(&wrong);
+    assert!(!bad.is_empty());
+    assert!(
+        bad.iter()
+            .all(|o| o["type"] == "refused" && o["error"] == "bad_signature"),
+        "{bad:?}"
+    );
+    // And a command still works with the right key while the telemetry is signed.
+    let stop = ground.run(&["send", "stop", "--key", path_str(&right)]);
+    assert_eq!(stop.status.code(), Some(0), "{}", stderr(&stop));
+    assert!(vehicle.finish().stopped_by_command);
+}

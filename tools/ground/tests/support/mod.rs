@@ -32,11 +32,25 @@ pub struct RunningVehicle {
 
 impl RunningVehicle {
     pub fn start(vehicle_id: u16, ground: SocketAddr, data_interval_ms: u32) -> Self {
+        Self::start_with(vehicle_id, ground, data_interval_ms, false)
+    }
+
+    /// A vehicle that signs its telemetry with [`KEY_HEX`].
+    pub fn start_signed(vehicle_id: u16, ground: SocketAddr, data_interval_ms: u32) -> Self {
+        Self::start_with(vehicle_id, ground, data_interval_ms, true)
+    }
+
+    fn start_with(
+        vehicle_id: u16,
+        ground: SocketAddr,
+        data_interval_ms: u32,
+        sign_telemetry: bool,
+    ) -> Self {
         let vehicle = FakeVehicle::bind(FakeVehicleConfig {
             vehicle_id,
             run_id: 0xC0FF_EE00 + u32::from(vehicle_id),
             key: key(),
-            sign_telemetry: false,
+            sign_telemetry,
             telemetry_to: ground,
             data_interval_ms,
             duration: Duration::from_secs(600),
