@@ -1,0 +1,159 @@
+//! The real ground station against the real vehicle on 127.0.0.1: `skyframe-ground monitor`
+//! sees every task's status within 3 s, `send rate` changes a telemetry rate, a stop with the
+//! wrong key does nothing, the right key ends the run cleanly with the logs closed.
+
+use serde_json::Value;
+use skyframe_tests::{binary, scratch, skyframe};
+use std::net::UdpSocket;
+use std::os::unix::fs::PermissionsExt;
+use std::path::Path;
+use std::process::{Command, Output, Stdio};
+
+fn ground(args: &[&str], listen: &str, key: &Path, state: &Path) -> Output {
+    Command::new(binary("skyframe-ground", "skyframe-ground"))
+        .args(args)
+        .args(["--listen", listen, "--key"])
+        .arg(key)
+        .arg("--state-dir")
+        .arg(state)
+        .output()
+        .expect("skyframe-ground runs")
+}
+
+/// JSON objects of `monitor --json`.
+fn messages(out: &Output) -> Vec<Value> {
+    String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .filter_map(|l| serde_json::from_str(l).ok())
+        .collect()
+}
+
+fn key_file(path: &Path, byte: u8) {
+    std::fs::write(path, format!("{}\n", format!("{byte:02x}").repeat(32))).expect("key");
+    std::fs::set_permissions(path, std::fs::Permissions::from_mode(0o600)).expect("chmod");
+}
+
+#[test]
+fn ground_and_vehicle_find_each_other_and_the_key_decides_who_stops_the_run() {
+    let dir = scratch("ground-vehicle");
+    let (key, wrong, state) = (
+        dir.join("link.key"),
+        dir.join("wrong.key"),
+        dir.join("state"),
+    );
+    key_file(&key, 0x21);
+    key_file(&wrong, 0x22);
+    // A free port for the ground to listen on.
+    let listen = {
+        let probe = UdpSocket::bind("127.0.0.1:0").expect("probe");
+        probe.local_addr().expect("addr").to_string()
+    };
+
+    let monitor = Command::new(binary("skyframe-ground", "skyframe-ground"))
+        .args(["monitor", "--json", "--seconds", "3", "--listen", &listen])
+        .stdout(Stdio::piped())
+        .spawn()
+        .expect("monitor");
+    let vehicle = skyframe()
+        .args([
+            "sim",
+            "--duration",
+            "60",
+            "--json",
+            "--priority",
+            "0",
+            "--no-mlockall",
+        ])
+        .args(["--commands", "127.0.0.1:0", "--telemetry", &listen, "--key"])
+        .arg(&key)
+        .arg("--log-dir")
+        .arg(dir.join("flights"))
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("skyframe sim");
+    let seen = messages(&monitor.wait_with_output().expect("monitor ends"));
+    let statuses: std::collections::BTreeSet<String> = seen
+        .iter()
+        .filter(|m| m.to_string().contains("TaskStatus") || m["type"] == "task_status")
+        .filter_map(|m| {
+            let s = m.to_string();
+            s.split("\"task_index\":")
+                .nth(1)
+                .and_then(|r| r.split([',', '}']).next())
+                .map(str::to_string)
+        })
+        .collect();
+    assert_eq!(
+        statuses.len(),
+        8,
+        "every task's status within 3 s: {statuses:?} of {} messages",
+        seen.len()
+    );
+
+    // Telemetry rate of task 0 (imu) to 10 Hz: acknowledged, and the data comes 10 times a second.
+    let out = ground(&["send", "rate", "0", "10"], &listen, &key, &state);
+    assert!(
+        out.status.success(),
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let out = ground(
+        &["monitor", "--json", "--seconds", "2"],
+        &listen,
+        &key,
+        &state,
+    );
+    let imu_data = messages(&out)
+        .iter()
+        .filter(|m| {
+            let s = m.to_string();
+            (s.contains("TaskData") || m["type"] == "task_data") && s.contains("\"task_index\":0")
+        })
+        .count();
+    assert!(imu_data >= 15, "imu data at 10 Hz: {imu_data} in 2 s");
+
+    // The wrong key: refused by the vehicle, the ground gives up (exit 1), the run goes on.
+    let out = ground(&["send", "stop", "--timeout", "2"], &listen, &wrong, &state);
+    assert_eq!(
+        out.status.code(),
+        Some(1),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    // The right key stops it.
+    let out = ground(&["send", "stop"], &listen, &key, &state);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let run = vehicle.wait_with_output().expect("vehicle ends");
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let report: Value = serde_json::from_slice(&run.stdout).expect("report");
+    assert_eq!(report["stop_reason"], "requested");
+    assert!(
+        report["link"]["commands_rejected"].as_u64().unwrap_or(0) >= 1,
+        "{}",
+        report["link"]
+    );
+    let converted = Command::new(binary("skyframe-log", "skyframe-log"))
+        .args([
+            "to-csv",
+            report["flight_dir"].as_str().expect("dir"),
+            "--out-dir",
+        ])
+        .arg(dir.join("csv"))
+        .output()
+        .expect("converter");
+    assert!(
+        converted.status.success(),
+        "logs closed cleanly: {}",
+        String::from_utf8_lossy(&converted.stderr)
+    );
+}
