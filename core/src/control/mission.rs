@@ -30,12 +30,14 @@ pub struct Mission {
     pub loiter_clockwise: bool,
 }
 
+/// The default loiter radius, 150 m, is above the tightest circle the airplane can fly at
+/// cruise within the bank limit: `V²/(g·tan φ_max)` = 110 m at 25 m/s and 30°.
 impl Default for Mission {
     fn default() -> Self {
         Self {
             waypoints: Vec::new(),
             switch_radius_m: 30.0,
-            loiter_radius_m: 80.0,
+            loiter_radius_m: 150.0,
             loiter_clockwise: true,
         }
     }
@@ -157,7 +159,7 @@ mod tests {
         let g = p.guide(&m, 500.0, 480.0).expect("guidance");
         assert!(g.loitering);
         // On the circle, north of the centre, clockwise: fly east.
-        let g = p.guide(&m, 580.0, 500.0).expect("guidance");
+        let g = p.guide(&m, 650.0, 500.0).expect("guidance");
         assert!(
             (g.course_rad - core::f32::consts::FRAC_PI_2).abs() < 1e-3,
             "{}",

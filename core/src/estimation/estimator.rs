@@ -280,6 +280,16 @@ impl Estimator {
         self.phase = phase;
     }
 
+    /// Starts the filter at a known state, skipping the alignment and the heading (a warm
+    /// start in flight, or a simulation started in the air). Position and velocity still
+    /// wait for the first GPS fix as usual.
+    pub fn start_from(&mut self, t_ns: u64, x: NominalState, yaw_sd_rad: f64) {
+        self.t_ns = t_ns;
+        self.ekf = Some(Ekf::new(self.config.ekf, x, t_ns, yaw_sd_rad));
+        self.phase = Phase::Running;
+        self.has_position = false;
+    }
+
     /// A GPS epoch. Sets the home point on the first valid fix if none is configured.
     pub fn gps(&mut self, fix: &GpsFix) {
         if !fix.valid {

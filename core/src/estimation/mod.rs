@@ -19,6 +19,8 @@ pub mod geo;
 pub use estimator::{
     Estimate, Estimator, EstimatorConfig, EstimatorHealth, HeadingSource, HealthReason, Phase,
 };
+/// The linear algebra the filter's API speaks, for users without their own dependency.
+pub use nalgebra;
 
 #[cfg(test)]
 mod tests;
