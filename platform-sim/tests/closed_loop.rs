@@ -16,8 +16,8 @@ use skyframe_core::estimation::nalgebra;
 use skyframe_core::estimation::{Estimator, EstimatorConfig};
 use skyframe_sim::plant::trim::trim_level_flight;
 use skyframe_sim::plant::{
-    ActuatorCommands, AircraftParams, DrydenParams, GpsFixType, GpsSample, Plant, PlantConfig,
-    WindConfig,
+    ActuatorCommands, AircraftParams, DrydenParams, GpsConfig, GpsFixType, GpsSample, Plant,
+    PlantConfig, WindConfig,
 };
 use std::time::Instant;
 
@@ -78,6 +78,18 @@ impl Rms {
 #[test]
 #[cfg_attr(debug_assertions, ignore)]
 fn estimator_and_autopilot_fly_the_aerosonde() {
+    fly(GpsConfig::nominal_10hz(), "nominal 10 Hz receiver");
+}
+
+/// The seed's receiver (thesis §6.1.2): 140 ms mean interval with 300 ms peaks.
+#[test]
+#[cfg_attr(debug_assertions, ignore)]
+fn estimator_and_autopilot_fly_the_aerosonde_with_the_seed_receiver() {
+    fly(GpsConfig::seed_receiver(), "seed receiver");
+}
+
+fn fly(gps: GpsConfig, label: &str) {
+    println!("--- {label}");
     let params = AircraftParams::aerosonde();
     let trim = trim_level_flight(&params, 25.0, 100.0, 0.0).expect("trim");
     let config = PlantConfig {
@@ -86,6 +98,7 @@ fn estimator_and_autopilot_fly_the_aerosonde() {
             steady_ned_mps: [0.0; 3],
             turbulence: Some(DrydenParams::light_low_altitude()),
         },
+        gps,
         ..PlantConfig::default()
     };
     let home = config.gps.home;
