@@ -305,7 +305,7 @@ fn static_alignment_then_attitude_and_biases_converge_and_covariance_shrinks() {
     };
     let mut first_p = None;
     let mut last_percent = 0;
-    for k in 1..=12_000u64 {
+    for k in 1..=6_000u64 {
         let t_ns = k * STEP_NS;
         let (w, f) = imu_of(&traj(0.0), &s, &mut rng);
         est.imu(
@@ -359,13 +359,13 @@ fn static_alignment_then_attitude_and_biases_converge_and_covariance_shrinks() {
 /// across it is indistinguishable from a tilt (`δφ ≈ b_y / g`), and in a steady turn an
 /// along-track one from a yaw error. So, as in flight: the filter starts as the alignment
 /// leaves it (attitude within ~1°, yaw 10° off, horizontal accelerometer bias unknown), flies
-/// straight and level for 30 s, rolls into a 30° turn and holds it for 90 s. The centripetal
+/// straight and level for 20 s, rolls into a 30° turn and holds it for 60 s. The centripetal
 /// acceleration must not tilt the attitude: roll equals the true bank within 0.5°.
 #[test]
 fn coordinated_turn_does_not_tilt_the_attitude() {
     let s = Sensors::noisy();
     let bank = 30f64.to_radians();
-    let table = roll_into_turn(120.0, 30.0, bank);
+    let table = roll_into_turn(80.0, 20.0, bank);
     let traj = table_fn(&table);
     let mut ekf = ekf_at(&traj(0.0), 1.0, 10.0);
     let mut worst_roll = 0f64;
@@ -375,11 +375,11 @@ fn coordinated_turn_does_not_tilt_the_attitude() {
         &mut ekf,
         &traj,
         &s,
-        120.0,
+        80.0,
         11,
         &mut no_fault(),
         &mut |t, ekf, truth| {
-            if t > 50.0 {
+            if t > 40.0 {
                 let e = euler_err_deg(&ekf.state().attitude, &truth.q);
                 worst_roll = worst_roll.max(e.x.abs());
                 worst_pitch = worst_pitch.max(e.y.abs());
@@ -414,7 +414,7 @@ fn gps_latency_compensation_removes_the_along_track_lag() {
                 assumed_latency_s: assumed,
                 ..s
             },
-            40.0,
+            25.0,
             3,
             &mut no_fault(),
             &mut |t, ekf, truth| {
@@ -445,7 +445,7 @@ fn climb_tracks_altitude_rate_and_pitch() {
         &mut ekf,
         &traj,
         &s,
-        90.0,
+        60.0,
         5,
         &mut no_fault(),
         &mut |t, ekf, truth| {
@@ -478,11 +478,11 @@ fn a_50_m_gps_jump_is_gated_and_counted() {
         &mut ekf,
         &traj,
         &s,
-        60.0,
+        35.0,
         9,
         &mut |t, m| {
             // A 2-second jump of 50 m north (Fig. 6-2 of the thesis).
-            if (40.0..42.0).contains(&t) {
+            if (25.0..27.0).contains(&t) {
                 if let Some(p) = m.position_ned_m.as_mut() {
                     p.x += 50.0;
                 }
@@ -510,17 +510,17 @@ fn a_persistent_gps_jump_is_accepted_after_the_reset_count() {
         &mut ekf,
         &traj,
         &s,
-        60.0,
+        35.0,
         13,
         &mut |t, m| {
-            if t >= 30.0 {
+            if t >= 20.0 {
                 if let Some(p) = m.position_ned_m.as_mut() {
                     p.y += 100.0;
                 }
             }
         },
         &mut |t, ekf, truth| {
-            if t > 55.0 {
+            if t > 32.0 {
                 seen = Some((ekf.state().position_ned_m - truth.p).y);
             }
         },
