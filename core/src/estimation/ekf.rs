@@ -19,11 +19,13 @@
 //!
 //! **Measurement delay**: the GPS solution (and a horizon image) describes the vehicle some
 //! 100 ms before it reaches the filter. The filter keeps a ring of its past nominal states
-//! (32 × 10 ms); an update forms its innovation against the stored state nearest the
+//! (100 × 10 ms: a GPS fix is ~0.1 s old, a horizon measured on the ground and sent back
+//! over the link may be several tenths); an update forms its innovation against the stored state nearest the
 //! measurement time and applies the correction to the current state (the *delayed-state
 //! correction*, not re-propagation). For position, the measurement model accounts for the
 //! velocity error over the delay (`δp(t_m) ≈ δp(now) − Δt·δv(now)`); the other error states
-//! are taken as constant over ≤ 320 ms. Each correction is also applied to the ring, so the
+//! are taken as constant over the delay (≤ 1 s; they change only through the biases and
+//! the process noise). Each correction is also applied to the ring, so the
 //! next delayed innovation does not count it twice.
 //!
 //! **Covariance hygiene**: Joseph-form updates (one scalar at a time, exact for the diagonal
@@ -55,8 +57,9 @@ pub const BA: usize = 12;
 /// Standard gravity (m/s²), down in NED.
 pub const GRAVITY_MPS2: f64 = 9.806_65;
 
-/// Past nominal states kept for delayed measurements: 32 steps, 320 ms at 100 Hz.
-pub const HISTORY_LEN: usize = 32;
+/// Past nominal states kept for delayed measurements: 100 steps, 1 s at 100 Hz
+/// (~8 KiB).
+pub const HISTORY_LEN: usize = 100;
 
 /// Filter tuning. Noise figures are continuous densities (per √s), so the filter is
 /// independent of the IMU rate.
@@ -267,11 +270,6 @@ impl History {
         }
     }
 
-    fn clear(&mut self) {
-        self.entries = [None; HISTORY_LEN];
-        self.next = 0;
-    }
-
     fn push(&mut self, entry: HistoryEntry) {
         if let Some(slot) = self.entries.get_mut(self.next) {
             *slot = Some(entry);
@@ -297,6 +295,15 @@ impl History {
             return None;
         }
         best.map(|(_, e)| e)
+    }
+
+    /// The newest stored state.
+    fn newest(&self) -> Option<HistoryEntry> {
+        self.entries
+            .iter()
+            .flatten()
+            .max_by_key(|e| e.t_ns)
+            .copied()
     }
 
     /// Applies a correction to every stored state (see the module comment).
@@ -576,14 +583,20 @@ impl Ekf {
         }
     }
 
-    /// Restarts from the last healthy snapshot (taken once a second) with the initial
-    /// covariance, and forgets the history. Counted.
+    /// Restarts with the initial covariance from the newest sane state: position, velocity
+    /// and attitude of the last step that passed the checks (the history only ever holds
+    /// such steps), biases from the last healthy snapshot (taken once a second). The history
+    /// is kept, so delayed updates go on at once. Counted.
     pub fn reset(&mut self, reason: ResetReason) {
         self.counters.resets = self.counters.resets.wrapping_add(1);
         self.last_reset = Some(reason);
         self.x = self.last_good;
+        if let Some(e) = self.history.newest() {
+            self.x.position_ned_m = e.position;
+            self.x.velocity_ned_mps = e.velocity;
+            self.x.attitude = e.attitude;
+        }
         self.p = self.initial_covariance(self.config.init_yaw_sd_rad);
-        self.history.clear();
         self.consecutive_pos_rejections = 0;
         self.steps_since_check = 0;
         self.rates = Vector3::zeros();
@@ -604,8 +617,8 @@ impl Ekf {
             self.p[(k, i)] = 0.0;
         }
         self.p[(k, k)] = yaw_sd_rad * yaw_sd_rad;
-        self.history.clear();
-        self.remember();
+        self.history
+            .correct(&Vector3::zeros(), &Vector3::zeros(), &turn);
     }
 
     /// Moves position and velocity by `dp`, `dv` (a reset to the GPS), their variance set to

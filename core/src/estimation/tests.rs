@@ -567,6 +567,10 @@ fn a_nan_imu_sample_is_refused_and_a_nan_state_resets_cleanly() {
     ekf.inject_fault_for_test();
     assert_eq!(ekf.counters().resets, 1);
     assert!(ekf.state().is_finite());
+    // Restarted from the last sane step, not from scratch: still where the airplane is.
+    let truth = traj(5.0);
+    assert!((ekf.state().position_ned_m - truth.p).norm() < 2.0);
+    assert!(euler_err_deg(&ekf.state().attitude, &truth.q).abs().max() < 1.0);
     assert_eq!(
         ekf.last_reset(),
         Some(super::ekf::ResetReason::NonFiniteState)
