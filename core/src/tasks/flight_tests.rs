@@ -5,6 +5,7 @@ use super::control::{CONTROL_INDEX, ControlSettings, ControlTask, GAINS_INDEX, d
 use super::estimator::{EstimatorTask, HEALTH_INDEX, SD_INDEX, STATE_INDEX};
 use super::servo::{ComputerCommand, Controls, PilotInput};
 use crate::comm::{LatestSlot, RecordSink};
+use crate::control::mission::{Mission, Waypoint};
 use crate::control::mode::ModeReason;
 use crate::devices::gps::GpsFix;
 use crate::devices::imu::{ImuMeasurement, ImuSample};
@@ -12,7 +13,7 @@ use crate::devices::servo::{BoardStatus, ControlMode, PilotReport};
 use crate::estimation::alignment::AlignmentConfig;
 use crate::estimation::{Estimate, EstimatorConfig, HeadingSource, HealthReason, Phase};
 use crate::executive::{HealthBoard, Task, TaskContext};
-use crate::link::messages::{FlightMode, Name, Value};
+use crate::link::messages::{FlightMode, HorizonAttitude, Name, Value};
 use crate::link::params::ParamTable;
 use crate::logfmt::reader::{Event, LogReader, Record, read_slice};
 use core::cell::RefCell;
@@ -95,14 +96,22 @@ fn quick_config() -> EstimatorConfig {
 
 #[test]
 fn estimator_task_aligns_publishes_and_logs() {
-    let (imu, gps, out) = (
+    let (imu, gps, horizon, out) = (
+        LatestSlot::new(),
         LatestSlot::new(),
         LatestSlot::new(),
         LatestSlot::<Estimate>::new(),
     );
     let bytes = RefCell::new(Vec::new());
     let health = HealthBoard::new(1);
-    let mut task = EstimatorTask::new(quick_config(), Capture(&bytes), &imu, &gps, None, &out);
+    let mut task = EstimatorTask::new(
+        quick_config(),
+        Capture(&bytes),
+        &imu,
+        &gps,
+        Some(&horizon),
+        &out,
+    );
     task.init(&mut cx(&health, 0)).expect("init");
     let mut seen_aligning = false;
     for k in 1..=400u64 {
@@ -110,6 +119,15 @@ fn estimator_task_aligns_publishes_and_logs() {
         imu.publish(at_rest(k as u8, t));
         if k % 10 == 0 {
             gps.publish(fix(t));
+        }
+        if k % 50 == 0 && k > 200 {
+            // Level, from an image taken 300 ms ago.
+            horizon.publish(HorizonAttitude {
+                roll_rad: 0.0,
+                pitch_rad: 0.0,
+                confidence: 0.8,
+                capture_t_ns: t - 300 * MS,
+            });
         }
         task.step(&mut cx(&health, t)).expect("step");
         let e = out.peek().expect("published");
@@ -123,6 +141,7 @@ fn estimator_task_aligns_publishes_and_logs() {
     assert!((e.yaw_rad - 0.5).abs() < 0.01);
     assert!(e.roll_rad.abs() < 0.01 && e.pitch_rad.abs() < 0.01);
     assert!((e.gyro_bias_radps[0] - 0.001).abs() < 2e-4);
+    assert_eq!(e.health.counters.horizon_accepted, 4);
     let data = task.task_data(7).expect("data");
     assert_eq!(
         (data.task_index, data.format_index, data.values.len()),
@@ -298,4 +317,52 @@ fn control_task_modes_gains_and_logs() {
     assert_eq!(count(CONTROL_INDEX), 9);
     assert_eq!(count(GAINS_INDEX), 2, "initial gains + one change");
     let _ = Controls::default();
+}
+
+#[test]
+fn control_task_flies_the_mission_in_auto() {
+    let estimate = LatestSlot::new();
+    let pilot_slot = LatestSlot::new();
+    let requested = LatestSlot::new();
+    let out = LatestSlot::<ComputerCommand>::new();
+    let mut table = ParamTable::new();
+    define_params(&mut table, &ControlSettings::default()).expect("fits");
+    let params = RefCell::new(table);
+    let mission = Mission::new(&[Waypoint {
+        north_m: 0.0,
+        east_m: 1000.0,
+        altitude_m: 120.0,
+        airspeed_mps: 22.0,
+    }])
+    .expect("fits");
+    let health = HealthBoard::new(1);
+    let bytes = RefCell::new(Vec::new());
+    let mut task = ControlTask::new(
+        ControlSettings::default(),
+        Capture(&bytes),
+        &estimate,
+        &pilot_slot,
+        &requested,
+        Some(&mission),
+        &params,
+        &out,
+    );
+    task.init(&mut cx(&health, 0)).expect("init");
+    requested.publish(FlightMode::Auto);
+    pilot_slot.publish(pilot(ControlMode::Auto, 1500, 20 * MS));
+    estimate.publish(healthy_estimate(20 * MS, true));
+    task.step(&mut cx(&health, 20 * MS)).expect("step");
+    let s = *task.last_step().expect("ran");
+    assert_eq!(
+        (s.decision.mode, s.decision.reason, s.waypoint),
+        (FlightMode::Auto, ModeReason::Requested, 0)
+    );
+    // The waypoint is east of a north-flying airplane: turn right, climb, 22 m/s.
+    assert!(s.targets.roll_rad > 0.0 && s.command.controls.aileron > 0.0);
+    assert!((s.targets.course_rad - core::f32::consts::FRAC_PI_2).abs() < 1e-3);
+    assert_eq!(
+        (s.targets.altitude_m, s.targets.airspeed_mps),
+        (120.0, 22.0)
+    );
+    assert!(s.command.ready);
 }
