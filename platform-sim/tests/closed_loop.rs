@@ -271,3 +271,82 @@ fn fly(gps: GpsConfig, label: &str) {
     assert!(loiter_radius.rms() < 20.0, "loiter");
     assert_eq!(h.counters.resets, 0);
 }
+
+/// The start-up path on the simulated runway: 10 s at rest (alignment: gyro bias, roll,
+/// pitch), then a full-throttle take-off run; the heading comes from the first GPS course
+/// above 5 m/s. Checked against the plant's truth and its IMU's true biases.
+#[test]
+#[cfg_attr(debug_assertions, ignore)]
+fn alignment_on_the_runway_and_heading_from_the_take_off_run() {
+    let params = AircraftParams::aerosonde();
+    let runway_heading = 1.2;
+    let initial = skyframe_sim::plant::InitialState::on_runway(&params, runway_heading);
+    let config = PlantConfig {
+        params,
+        ..PlantConfig::default()
+    };
+    let latency_ns = (config.gps.latency_s * 1e9).round() as u64;
+    let mut plant = Plant::with_config(config, initial, 11);
+    let mut est = Estimator::new(EstimatorConfig {
+        gps_latency_ns: latency_ns,
+        ..EstimatorConfig::default()
+    });
+    let mut aligned_at = None;
+    let mut running_at = None;
+    let mut worst_tilt_after = 0f64;
+    for k in 1..=2000u64 {
+        let t = k as f64 * DT;
+        let throttle = if t > 10.5 { 1.0 } else { 0.0 };
+        plant.step(
+            DT,
+            &ActuatorCommands {
+                throttle,
+                ..Default::default()
+            },
+        );
+        let imu = plant.sample_imu();
+        est.imu(
+            (t * 1e9).round() as u64,
+            DT,
+            imu.gyro_radps.map(|x| x as f32),
+            imu.specific_force_mps2.map(|x| x as f32),
+        );
+        while let Some(s) = plant.sample_gps() {
+            est.gps(&fix_of(&s));
+        }
+        let e = est.estimate();
+        let truth = plant.truth();
+        if aligned_at.is_none() && e.health.phase != skyframe_core::estimation::Phase::Aligning {
+            aligned_at = Some(t);
+            let (bg, _) = plant.imu_biases();
+            let err: f64 = (0..3)
+                .map(|i| (e.gyro_bias_radps[i] as f64 - bg[i]).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            println!("aligned at {t:.2} s: gyro bias error {err:.5} rad/s");
+            assert!(err < 5e-4, "gyro bias error {err}");
+        }
+        if running_at.is_none() && e.health.phase == skyframe_core::estimation::Phase::Running {
+            running_at = Some(t);
+            let yaw_err = wrap_deg((e.yaw_rad as f64 - truth.yaw_rad).to_degrees());
+            println!(
+                "heading from GPS course at {t:.2} s, {:.1} m/s: yaw error {yaw_err:.2}°, healthy {}",
+                truth.velocity_ned_mps[0].hypot(truth.velocity_ned_mps[1]),
+                e.health.healthy
+            );
+            assert!(yaw_err.abs() < 3.0);
+        }
+        if running_at.is_some() && truth.on_ground {
+            let r = wrap_deg((e.roll_rad as f64 - truth.roll_rad).to_degrees());
+            let p = wrap_deg((e.pitch_rad as f64 - truth.pitch_rad).to_degrees());
+            worst_tilt_after = worst_tilt_after.max(r.abs()).max(p.abs());
+        }
+    }
+    println!("worst roll/pitch error on the take-off run: {worst_tilt_after:.2}°");
+    assert!(aligned_at.is_some_and(|t| (9.9..10.2).contains(&t)));
+    assert!(running_at.is_some());
+    assert!(worst_tilt_after < 1.0);
+    let h = est.estimate().health;
+    assert!(h.healthy, "{:?}", h.reason);
+    assert_eq!(h.counters.resets, 0);
+}

@@ -691,6 +691,42 @@ impl Ekf {
         15_000_000
     }
 
+    /// Moves position and velocity onto a GPS measurement (at its time, through the
+    /// history), dropping their correlations: the first fix, a heading just set (the
+    /// velocity was integrated with a guessed yaw), or a persistent jump. `false` if the
+    /// measurement has no usable position or is older than the history.
+    pub fn reset_to_gps(&mut self, m: &GpsMeasurement) -> bool {
+        let Some(z) = m.position_ned_m.filter(|z| z.iter().all(|x| x.is_finite())) else {
+            return false;
+        };
+        let Some(past) = self
+            .history
+            .nearest(m.t_ns.min(self.t_ns), Self::slack_ns())
+        else {
+            return false;
+        };
+        let dv = m
+            .velocity_ned_mps
+            .iter()
+            .zip(past.velocity.iter())
+            .map(|(z, v)| z.filter(|z| z.is_finite()).map_or(0.0, |z| z - v));
+        let dv = Vector3::from_iterator(dv);
+        let var = m
+            .position_sd_m
+            .iter()
+            .map(|sd| {
+                if sd.is_finite() {
+                    sd.max(self.config.gps_min_pos_sd_m)
+                } else {
+                    10.0
+                }
+            })
+            .fold(0.0f64, f64::max);
+        self.set_position_velocity(z - past.position, dv, var * var);
+        self.consecutive_pos_rejections = 0;
+        true
+    }
+
     /// A GPS position/velocity update at the measurement's time (see the module comment).
     pub fn update_gps(&mut self, m: &GpsMeasurement) -> GpsOutcome {
         let mut out = GpsOutcome {
@@ -736,16 +772,8 @@ impl Ekf {
                     out.position = UpdateOutcome::Rejected { nis: nis as f32 };
                     out.position_nis = nis as f32;
                     if self.consecutive_pos_rejections >= c.gps_reset_after {
-                        self.consecutive_pos_rejections = 0;
                         self.counters.gps_resets = self.counters.gps_resets.wrapping_add(1);
-                        let dv = m
-                            .velocity_ned_mps
-                            .iter()
-                            .zip(past.velocity.iter())
-                            .map(|(z, v)| z.filter(|z| z.is_finite()).map_or(0.0, |z| z - v));
-                        let dv = Vector3::from_iterator(dv);
-                        let var = r_diag.max();
-                        self.set_position_velocity(y, dv, var);
+                        self.reset_to_gps(m);
                         out.position = UpdateOutcome::ResetToMeasurement;
                         out.velocity = UpdateOutcome::ResetToMeasurement;
                         return out;

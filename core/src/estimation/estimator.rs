@@ -3,14 +3,15 @@
 //!
 //! Phases: [`Phase::Aligning`] (the vehicle must be at rest; progress 0–100 %) →
 //! [`Phase::AwaitingHeading`] (the filter runs, but its yaw is a guess: GPS updates only
-//! while slow, and the estimate is not healthy) → [`Phase::Running`]. The heading comes from
+//! while at rest, and the estimate is not healthy) → [`Phase::Running`]. The heading comes from
 //! [`HeadingSource`]: configured, or the first GPS course over ground above a speed.
 
 use nalgebra::Vector3;
 
 use super::alignment::{Alignment, AlignmentConfig, AlignmentResult};
 use super::ekf::{
-    BA, BG, Ekf, EkfConfig, EkfCounters, GpsMeasurement, NominalState, P, TH, UpdateOutcome, V,
+    BA, BG, Ekf, EkfConfig, EkfCounters, GRAVITY_MPS2, GpsMeasurement, NominalState, P, TH,
+    UpdateOutcome, V,
 };
 use super::geo::{GeoPoint, LocalFrame};
 use crate::devices::gps::GpsFix;
@@ -269,7 +270,11 @@ impl Estimator {
         x.gyro_bias_radps = a.gyro_bias_radps;
         x.accel_bias_mps2 = a.accel_bias_mps2;
         let mut config = self.config.ekf;
-        // What the averaging left: the bias across gravity looks like a tilt.
+        // What the averaging left: the bias across gravity looks like a tilt, so roll and
+        // pitch are known to about that bias over g.
+        config.init_att_sd_rad = config
+            .init_att_sd_rad
+            .min((config.init_accel_bias_sd_mps2 / GRAVITY_MPS2).max(0.2f64.to_radians()));
         config.init_gyro_bias_sd_radps = config.init_gyro_bias_sd_radps.min(
             (a.rate_sd_radps / libm::sqrt(f64::from(self.config.alignment.samples.max(1))))
                 .max(2e-4)
@@ -342,26 +347,25 @@ impl Estimator {
                 if speed >= min_speed_mps && course.is_finite() {
                     ekf.set_yaw(f64::from(course), f64::from(c.heading_sd_rad));
                     self.phase = Phase::Running;
+                    // The velocity since the vehicle started moving was integrated with a
+                    // guessed yaw: take position and velocity from the GPS.
+                    if ekf.reset_to_gps(&m) {
+                        self.has_position = true;
+                        self.last_gps_accept_ns = Some(self.t_ns);
+                    }
+                    return;
                 }
             }
-            // While the yaw is a guess, a fast GPS velocity would tilt the attitude.
-            if self.phase == Phase::AwaitingHeading && fix.ground_speed_mps.is_some_and(|s| s > 2.0)
+            // While the yaw is a guess, velocity integrated along it is wrong as soon as the
+            // vehicle moves, and the update would explain that with a tilt: no updates then.
+            if self.phase == Phase::AwaitingHeading && fix.ground_speed_mps.is_none_or(|s| s > 0.5)
             {
                 return;
             }
         }
 
         if !self.has_position {
-            if let Some(z) = m.position_ned_m {
-                let x = ekf.state();
-                let dv = Vector3::from_iterator(
-                    m.velocity_ned_mps
-                        .iter()
-                        .zip(x.velocity_ned_mps.iter())
-                        .map(|(z, v)| z.map_or(0.0, |z| z - v)),
-                );
-                let dp = z - x.position_ned_m;
-                ekf.set_position_velocity(dp, dv, position_sd.norm_squared() / 3.0);
+            if ekf.reset_to_gps(&m) {
                 self.has_position = true;
                 self.last_gps_accept_ns = Some(self.t_ns);
             }
