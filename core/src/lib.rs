@@ -9,6 +9,8 @@
 //! - [`comm`]: the lock-free ways tasks hand data to each other and to the shell;
 //! - [`devices`]: the GPS, IMU and servo board wire protocols, bytes to SI-unit frames and
 //!   back;
+//! - [`estimation`]: the alignment and the error-state EKF behind the estimator task;
+//! - [`control`]: PID loops, the successive-loop autopilot, missions and flight modes;
 //! - [`tasks`]: the tasks the schedule names;
 //! - [`logfmt`]: the binary flight log: encoding records, reading and printing them;
 //! - [`link`]: the vehicle–ground protocol: messages, encoding, command authentication;
@@ -24,7 +26,9 @@ extern crate std;
 #[macro_use]
 pub mod facade;
 pub mod comm;
+pub mod control;
 pub mod devices;
+pub mod estimation;
 pub mod executive;
 pub mod horizon;
 pub mod link;

@@ -1,0 +1,187 @@
+//! Missions: a fixed-capacity list of waypoints in the local NED frame (the std side parses
+//! the mission file into it), flown one after the other with a switching radius, then a
+//! loiter circle around the last one.
+//!
+//! Guidance is "fly to": the commanded course points at the active waypoint, which is
+//! reached when within the switching radius. The loiter follows a circle with the orbit law
+//! of Beard & McLain (§10.3): `χ_c = γ + λ(π/2 + atan(k·(d − ρ)/ρ))`, where `γ` is the
+//! bearing from the centre, `d` the distance to it, `ρ` the radius, `λ` = +1 clockwise.
+
+use heapless::Vec;
+
+pub const MAX_WAYPOINTS: usize = 32;
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Waypoint {
+    pub north_m: f32,
+    pub east_m: f32,
+    /// Above home, up.
+    pub altitude_m: f32,
+    pub airspeed_mps: f32,
+}
+
+#[derive(Clone, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Mission {
+    pub waypoints: Vec<Waypoint, MAX_WAYPOINTS>,
+    pub switch_radius_m: f32,
+    pub loiter_radius_m: f32,
+    pub loiter_clockwise: bool,
+}
+
+/// The default loiter radius, 150 m, is above the tightest circle the airplane can fly at
+/// cruise within the bank limit: `V²/(g·tan φ_max)` = 110 m at 25 m/s and 30°.
+impl Default for Mission {
+    fn default() -> Self {
+        Self {
+            waypoints: Vec::new(),
+            switch_radius_m: 30.0,
+            loiter_radius_m: 150.0,
+            loiter_clockwise: true,
+        }
+    }
+}
+
+impl Mission {
+    /// A mission of `waypoints` (at most [`MAX_WAYPOINTS`]; `None` if more).
+    pub fn new(waypoints: &[Waypoint]) -> Option<Self> {
+        Some(Self {
+            waypoints: Vec::from_slice(waypoints).ok()?,
+            ..Self::default()
+        })
+    }
+}
+
+/// What guidance asks of the autopilot.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Guidance {
+    pub course_rad: f32,
+    pub altitude_m: f32,
+    pub airspeed_mps: f32,
+    /// The active waypoint (the loiter centre's index once loitering).
+    pub waypoint: u8,
+    pub loitering: bool,
+    pub distance_m: f32,
+}
+
+/// Progress through a mission.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct MissionProgress {
+    pub index: usize,
+    pub loitering: bool,
+}
+
+/// Orbit gain `k` of the loiter law.
+const ORBIT_GAIN: f32 = 2.0;
+
+fn wrap(a: f32) -> f32 {
+    let two_pi = 2.0 * core::f32::consts::PI;
+    let mut a = libm::fmodf(a, two_pi);
+    if a > core::f32::consts::PI {
+        a -= two_pi;
+    } else if a <= -core::f32::consts::PI {
+        a += two_pi;
+    }
+    a
+}
+
+impl MissionProgress {
+    pub fn restart(&mut self) {
+        *self = Self::default();
+    }
+
+    /// Guidance from the current position (north, east, m); `None` for an empty mission.
+    pub fn guide(&mut self, mission: &Mission, north_m: f32, east_m: f32) -> Option<Guidance> {
+        let last = mission.waypoints.len().checked_sub(1)?;
+        if !self.loitering {
+            let wp = mission.waypoints.get(self.index.min(last))?;
+            let (dn, de) = (wp.north_m - north_m, wp.east_m - east_m);
+            let distance = libm::sqrtf(dn * dn + de * de);
+            if distance < mission.switch_radius_m {
+                if self.index >= last {
+                    self.loitering = true;
+                } else {
+                    self.index += 1;
+                }
+            }
+        }
+        let index = self.index.min(last);
+        let wp = *mission.waypoints.get(index)?;
+        let (dn, de) = (wp.north_m - north_m, wp.east_m - east_m);
+        let distance = libm::sqrtf(dn * dn + de * de);
+        let course = if self.loitering {
+            let rho = mission.loiter_radius_m.max(1.0);
+            let gamma = libm::atan2f(-de, -dn);
+            let lambda = if mission.loiter_clockwise { 1.0 } else { -1.0 };
+            gamma
+                + lambda
+                    * (core::f32::consts::FRAC_PI_2
+                        + libm::atanf(ORBIT_GAIN * (distance - rho) / rho))
+        } else {
+            libm::atan2f(de, dn)
+        };
+        Some(Guidance {
+            course_rad: wrap(course),
+            altitude_m: wp.altitude_m,
+            airspeed_mps: wp.airspeed_mps,
+            waypoint: u8::try_from(index).unwrap_or(u8::MAX),
+            loitering: self.loitering,
+            distance_m: distance,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn wp(n: f32, e: f32) -> Waypoint {
+        Waypoint {
+            north_m: n,
+            east_m: e,
+            altitude_m: 100.0,
+            airspeed_mps: 25.0,
+        }
+    }
+
+    #[test]
+    fn flies_to_each_waypoint_then_loiters_at_the_last() {
+        let m = Mission::new(&[wp(500.0, 0.0), wp(500.0, 500.0)]).expect("fits");
+        let mut p = MissionProgress::default();
+        let g = p.guide(&m, 0.0, 0.0).expect("guidance");
+        assert!(g.course_rad.abs() < 1e-6 && g.waypoint == 0 && !g.loitering);
+        let g = p.guide(&m, 490.0, 0.0).expect("guidance");
+        assert_eq!(g.waypoint, 1);
+        assert!((g.course_rad - core::f32::consts::FRAC_PI_2).abs() < 0.05);
+        let g = p.guide(&m, 500.0, 480.0).expect("guidance");
+        assert!(g.loitering);
+        // On the circle, north of the centre, clockwise: fly east.
+        let g = p.guide(&m, 650.0, 500.0).expect("guidance");
+        assert!(
+            (g.course_rad - core::f32::consts::FRAC_PI_2).abs() < 1e-3,
+            "{}",
+            g.course_rad
+        );
+        // Far outside: head (mostly) towards the centre.
+        let g = p.guide(&m, 2500.0, 500.0).expect("guidance");
+        assert!(
+            (g.course_rad.abs() - core::f32::consts::PI).abs() < 0.6,
+            "{}",
+            g.course_rad
+        );
+    }
+
+    #[test]
+    fn empty_and_oversized_missions() {
+        assert!(
+            MissionProgress::default()
+                .guide(&Mission::default(), 0.0, 0.0)
+                .is_none()
+        );
+        let many = [wp(0.0, 0.0); MAX_WAYPOINTS + 1];
+        assert!(Mission::new(&many).is_none());
+    }
+}

@@ -1,0 +1,8 @@
+//! Control: who flies ([`mode`]), what to fly ([`mission`]), and how ([`autopilot`] built of
+//! [`pid`] loops). The control task (`tasks/control.rs`) ties them to the estimate, the
+//! pilot and the parameters.
+
+pub mod autopilot;
+pub mod mission;
+pub mod mode;
+pub mod pid;
