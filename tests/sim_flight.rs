@@ -56,6 +56,8 @@ fn a_fast_run_is_byte_identical_for_the_same_seed() {
     assert_eq!(
         names,
         [
+            "control.bin",
+            "estimator.bin",
             "executive.bin",
             "gps.bin",
             "health.bin",

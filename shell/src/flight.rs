@@ -17,9 +17,12 @@ use skyframe_core::devices::DecoderStats;
 use skyframe_core::devices::gps::SentenceKind;
 use skyframe_core::devices::gps::{GpsConfig, GpsFix};
 use skyframe_core::devices::imu::ImuSample;
+use skyframe_core::estimation::EstimatorConfig;
 use skyframe_core::executive::Task;
 use skyframe_core::link::params::ParamTable;
 use skyframe_core::schedule::FrameTable;
+use skyframe_core::tasks::control::{ControlSettings, ControlTask, define_params};
+use skyframe_core::tasks::estimator::EstimatorTask;
 use skyframe_core::tasks::gps::GpsTask;
 use skyframe_core::tasks::health::HealthTask;
 use skyframe_core::tasks::imu::ImuTask;
@@ -311,6 +314,11 @@ pub fn fly<P: Platform>(
         sim = Some((world, link, truth));
     }
 
+    // Estimation and control fly whenever there are devices to feed them.
+    let has_devices = !device_ports.is_empty();
+    let estimator_stream = has_devices.then(|| streams.open("estimator", TASK_RING_BYTES));
+    let control_stream = has_devices.then(|| streams.open("control", TASK_RING_BYTES));
+
     let writer = streams.writer.start().map_err(|e| {
         format!(
             "cannot start the log writer in {}: {e}",
@@ -338,9 +346,44 @@ pub fn fly<P: Platform>(
     let health_period_ms = Cell::new(0u32);
     let mode_request = LatestSlot::new();
     let horizon = LatestSlot::new();
+    let estimate = LatestSlot::new();
     let params = RefCell::new(ParamTable::new());
+    let control_defaults = ControlSettings::default();
+    if let Ok(mut table) = params.try_borrow_mut() {
+        define_params(&mut table, &control_defaults)
+            .map_err(|e| format!("control parameters: {e:?}"))?;
+    }
     let (imu_tap, gps_tap, servo_tap, health_tap) =
         (Tap::new(), Tap::new(), Tap::new(), Tap::new());
+    let (estimator_tap, control_tap) = (Tap::new(), Tap::new());
+    let mut estimator_task = estimator_stream.map(|log| {
+        EstimatorTask::new(
+            EstimatorConfig::default(),
+            TappedSink {
+                inner: log,
+                tap: &estimator_tap,
+            },
+            &imu_samples,
+            &gps_fixes,
+            Some(&horizon),
+            &estimate,
+        )
+    });
+    let mut control_task = control_stream.map(|log| {
+        ControlTask::new(
+            control_defaults,
+            TappedSink {
+                inner: log,
+                tap: &control_tap,
+            },
+            &estimate,
+            &pilot,
+            &mode_request,
+            None,
+            &params,
+            &servo_commands,
+        )
+    });
     let mut watchdog = HealthTask::new(&watchdog_out).with_period(&health_period_ms);
     let mut logging = LoggingTask::new(
         TappedSink {
@@ -383,6 +426,8 @@ pub fn fly<P: Platform>(
             "gps" if gps_task.is_some() => Some(&gps_tap),
             "servo" if servo_task.is_some() => Some(&servo_tap),
             "logging" => Some(&health_tap),
+            "estimator" if estimator_task.is_some() => Some(&estimator_tap),
+            "control" if control_task.is_some() => Some(&control_tap),
             _ => None,
         })
         .collect();
@@ -424,6 +469,12 @@ pub fn fly<P: Platform>(
         vec![("health", &mut watchdog), ("logging", &mut logging)];
     if let Some(t) = telemetry_task.as_mut() {
         real.push(("telemetry", t));
+    }
+    if let Some(t) = estimator_task.as_mut() {
+        real.push(("estimator", t));
+    }
+    if let Some(t) = control_task.as_mut() {
+        real.push(("control", t));
     }
     if let Some(t) = imu_task.as_mut() {
         real.push(("imu", t));
