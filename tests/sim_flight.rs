@@ -86,7 +86,7 @@ fn a_fast_run_is_byte_identical_for_the_same_seed() {
 #[test]
 fn the_simulated_devices_decode_cleanly_and_the_airplane_flies() {
     let dir = scratch("sim-devices");
-    let report = sim_fast(&dir, "30", "1");
+    let report = sim_fast(&dir, "40", "1");
     for device in report["devices"].as_array().expect("devices") {
         let errors = [
             "bad_checksum",
@@ -108,23 +108,24 @@ fn the_simulated_devices_decode_cleanly_and_the_airplane_flies() {
             .map_or(0, |d| d["frames"].as_u64().unwrap_or(0))
     };
     assert!(
-        (2995..=3001).contains(&frames("imu")),
-        "100 Hz for 30 s: {}",
+        (3995..=4001).contains(&frames("imu")),
+        "100 Hz for 40 s: {}",
         frames("imu")
     );
     assert!(
-        (1495..=1501).contains(&frames("servo")),
-        "50 Hz for 30 s: {}",
+        (1995..=2001).contains(&frames("servo")),
+        "50 Hz for 40 s: {}",
         frames("servo")
     );
     // The seed's receiver: 140 ms mean period, six sentences an epoch.
     let epochs = frames("gps") as f64 / 6.0;
     assert!(
-        (190.0..240.0).contains(&epochs),
-        "{epochs} GPS epochs in 30 s"
+        (255.0..320.0).contains(&epochs),
+        "{epochs} GPS epochs in 40 s"
     );
 
-    // Truth: the default scenario's pilot took off (after ~5 s) and is climbing out.
+    // Truth: the default scenario's pilot waited 14 s for the alignment, took off and is
+    // climbing out.
     let flight = PathBuf::from(report["flight_dir"].as_str().expect("dir"));
     let out = convert(&flight, &dir.join("csv"));
     let truth = rows(&out.join("truth.1.csv"));
@@ -190,14 +191,17 @@ fn the_default_scenario_takes_off_flies_its_aerobatics_and_lands() {
     let dir = scratch("sim-default");
     let report = sim_fast_with(&dir, &[]);
     assert_eq!(report["stop_reason"], "duration");
-    assert!((report["elapsed_s"].as_f64().unwrap_or(0.0) - 300.0).abs() < 0.1);
+    assert!((report["elapsed_s"].as_f64().unwrap_or(0.0) - 315.0).abs() < 0.1);
     let flight = PathBuf::from(report["flight_dir"].as_str().expect("dir"));
     let truth = rows(&convert(&flight, &dir.join("csv")).join("truth.1.csv"));
     let airborne: Vec<&Vec<f64>> = truth.iter().filter(|r| r[19] == 0.0).collect();
     let first = airborne.first().map_or(f64::NAN, |r| r[0]);
     let last = airborne.last().map_or(f64::NAN, |r| r[0]);
-    assert!((3.0..10.0).contains(&first), "lift-off at {first} s");
-    assert!((200.0..295.0).contains(&last), "touchdown at {last} s");
+    assert!(
+        (15.0..25.0).contains(&first),
+        "lift-off at {first} s, after the 14 s alignment"
+    );
+    assert!((200.0..310.0).contains(&last), "touchdown at {last} s");
     let max_roll = truth.iter().map(|r| r[7].abs()).fold(0.0, f64::max);
     let max_pitch = truth.iter().map(|r| r[8]).fold(f64::MIN, f64::max);
     assert!(
@@ -211,6 +215,29 @@ fn the_default_scenario_takes_off_flies_its_aerobatics_and_lands() {
     let end = truth.last().expect("rows");
     assert_eq!(end[19], 1.0, "on the ground at the end");
     assert!(end[13] < 5.0, "rolled out: {} m/s", end[13]);
+
+    // The flight computer: the estimator aligned on the runway and stayed healthy in the
+    // air; the controller flew the AUTO stretch (139-179 s) and handed back at once.
+    let csv = dir.join("csv");
+    let health = rows(&csv.join("estimator.2.csv"));
+    let in_air: Vec<&Vec<f64>> = health
+        .iter()
+        .filter(|r| (30.0..270.0).contains(&r[0]))
+        .collect();
+    assert!(
+        !in_air.is_empty() && in_air.iter().all(|r| r[4] == 1.0),
+        "estimator healthy in flight"
+    );
+    let control = rows(&csv.join("control.1.csv"));
+    let auto_rows = control.iter().filter(|r| r[1] != 0.0).count();
+    assert!(
+        (1900..=2100).contains(&auto_rows),
+        "{auto_rows} control steps in auto (40 s at 50 Hz)"
+    );
+    assert!(
+        control.iter().filter(|r| r[0] > 181.0).all(|r| r[1] == 0.0),
+        "manual after the switch"
+    );
 }
 
 #[test]

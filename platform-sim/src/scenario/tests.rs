@@ -77,10 +77,11 @@ const SEEDS: [u64; 3] = [1, 2, 3];
 
 /// What the default scenario must look like, flown by the pilot alone.
 fn check_default_flight(s: &FlightSummary) {
-    // Lifts off within the first 300 m of runway, on the centreline.
+    // Parked 14 s for the estimator's alignment, then lifts off within the first 300 m of
+    // runway, on the centreline.
     let (t_lo, at_lo) = s.liftoff.expect("never lifted off");
     assert!(
-        t_lo < 15.0 && at_lo[0] < 300.0 && at_lo[1].abs() < 5.0,
+        (15.0..30.0).contains(&t_lo) && at_lo[0] < 300.0 && at_lo[1].abs() < 5.0,
         "{:?}",
         s.liftoff
     );
@@ -107,7 +108,7 @@ fn check_default_flight(s: &FlightSummary) {
         let nearest = s
             .samples
             .iter()
-            .filter(|p| p.t_s < 125.0)
+            .filter(|p| p.t_s < 139.0)
             .map(|p| (p.position_ned_m[0] - n).hypot(p.position_ned_m[1] - e))
             .fold(f64::INFINITY, f64::min);
         assert!(
@@ -197,7 +198,7 @@ fn board_gives_a_ready_computer_the_servos_on_auto_and_the_pilot_when_it_dies() 
     let scenario = parse(TAKEOFF_CIRCUIT);
     let params = AircraftParams::aerosonde();
     let trim = crate::plant::trim::trim_level_flight(&params, 23.0, 100.0, 0.0).expect("trim");
-    let dies_at_s = 140.0;
+    let dies_at_s = 154.0;
     let computer = |t: &Truth| {
         (t.t_s < dies_at_s).then(|| ComputerCommand {
             commands: ActuatorCommands {
@@ -220,11 +221,11 @@ fn board_gives_a_ready_computer_the_servos_on_auto_and_the_pilot_when_it_dies() 
             .expect("sample")
     };
     use OutputSource::*;
-    assert_eq!(source_at(120.0), (SwitchPosition::Manual, Pilot));
-    assert_eq!(source_at(126.0), (SwitchPosition::Auto, Computer));
-    assert_eq!(source_at(139.8), (SwitchPosition::Auto, Computer));
-    assert_eq!(source_at(140.2), (SwitchPosition::Auto, Failsafe));
-    assert_eq!(source_at(166.0), (SwitchPosition::Manual, Pilot));
+    assert_eq!(source_at(134.0), (SwitchPosition::Manual, Pilot));
+    assert_eq!(source_at(140.0), (SwitchPosition::Auto, Computer));
+    assert_eq!(source_at(153.8), (SwitchPosition::Auto, Computer));
+    assert_eq!(source_at(154.2), (SwitchPosition::Auto, Failsafe));
+    assert_eq!(source_at(180.0), (SwitchPosition::Manual, Pilot));
     // 15 s on the computer, 25 s of failsafe, and the pilot lands as usual.
     assert!(
         (s.time_on_computer_s - 15.0).abs() < 0.2,
@@ -303,7 +304,7 @@ fn faults_scenario_flies_and_lands_with_every_fault_kind() {
 fn shipped_scenarios_parse_to_what_they_say() {
     let s = parse(TAKEOFF_CIRCUIT);
     assert_eq!(s.seed, 2003);
-    assert_eq!(s.duration_s, 300.0);
+    assert_eq!(s.duration_s, 315.0);
     assert_eq!(s.initial, InitialCondition::OnRunway { heading_rad: 0.0 });
     assert_eq!(s.turbulence, Turbulence::Light);
     assert_eq!(s.gps, GpsPreset::SeedReceiver);
@@ -317,7 +318,11 @@ fn shipped_scenarios_parse_to_what_they_say() {
             TimelineAction::Switch(_) => None,
         })
         .collect();
-    assert!(matches!(pilots[0], Manoeuvre::Takeoff { climb_to_m, .. } if climb_to_m == 100.0));
+    // Parked with the brakes on for the estimator's alignment, then the take-off.
+    assert!(
+        matches!(pilots[0], Manoeuvre::Sticks { sticks, duration_s } if sticks.brake == 1.0 && duration_s == 14.0)
+    );
+    assert!(matches!(pilots[1], Manoeuvre::Takeoff { climb_to_m, .. } if climb_to_m == 100.0));
     assert!(pilots.contains(&Manoeuvre::Roll {
         direction: Direction::Right
     }));
@@ -330,7 +335,7 @@ fn shipped_scenarios_parse_to_what_they_say() {
     );
     assert!(s.faults.is_empty());
     assert_eq!(
-        s.timeline[1].line, 33,
+        s.timeline[2].line, 44,
         "line of the take-off entry's header"
     );
 
@@ -615,12 +620,16 @@ fn timeline_player_applies_entries_when_due() {
     let params = AircraftParams::aerosonde();
     let mut pilot = Pilot::new(&params, PilotConfig::default());
     let mut player = s.player();
-    assert_eq!(player.advance(0.0, &mut pilot), 1, "the switch at 0 s");
+    assert_eq!(
+        player.advance(0.0, &mut pilot),
+        2,
+        "the switch and the parked hold at 0 s"
+    );
     assert_eq!(player.advance(0.5, &mut pilot), 0);
-    assert_eq!(player.advance(1.0, &mut pilot), 1, "the take-off");
-    assert_eq!(player.advance(125.0, &mut pilot), 5);
+    assert_eq!(player.advance(15.0, &mut pilot), 1, "the take-off");
+    assert_eq!(player.advance(139.0, &mut pilot), 5);
     assert_eq!(pilot.switch(), SwitchPosition::Auto);
-    assert_eq!(player.advance(1e9, &mut pilot), s.timeline.len() - 7);
+    assert_eq!(player.advance(1e9, &mut pilot), s.timeline.len() - 8);
     assert!(player.is_finished());
 }
 
