@@ -217,7 +217,8 @@ fn the_default_scenario_takes_off_flies_its_aerobatics_and_lands() {
     assert!(end[13] < 5.0, "rolled out: {} m/s", end[13]);
 
     // The flight computer: the estimator aligned on the runway and stayed healthy in the
-    // air; the controller flew the AUTO stretch (139-179 s) and handed back at once.
+    // air; with the switch at AUTO (139-179 s) the flight computer held the pilot's attitude
+    // (Stabilise: no mission is loaded) and handed back at once.
     let csv = dir.join("csv");
     let health = rows(&csv.join("estimator.2.csv"));
     let in_air: Vec<&Vec<f64>> = health
@@ -238,6 +239,76 @@ fn the_default_scenario_takes_off_flies_its_aerobatics_and_lands() {
         control.iter().filter(|r| r[0] > 181.0).all(|r| r[1] == 0.0),
         "manual after the switch"
     );
+}
+
+#[test]
+fn a_mission_is_flown_in_auto_then_loitered_and_the_pilot_lands() {
+    let dir = scratch("sim-mission");
+    let root = skyframe_tests::workspace();
+    let scenario = root.join("scenarios/auto-circuit.toml");
+    let mission = root.join("scenarios/circuit-mission.toml");
+    let report = sim_fast_with(
+        &dir,
+        &[
+            "--scenario",
+            scenario.to_str().expect("utf-8"),
+            "--mission",
+            mission.to_str().expect("utf-8"),
+        ],
+    );
+    assert_eq!(report["stop_reason"], "duration");
+    let flight = PathBuf::from(report["flight_dir"].as_str().expect("dir"));
+    let csv = convert(&flight, &dir.join("csv"));
+    let control = rows(&csv.join("control.1.csv"));
+    let truth = rows(&csv.join("truth.1.csv"));
+
+    // The pilot's switch at AUTO (50-240 s) hands over to the mission, not Stabilise.
+    let auto: Vec<&Vec<f64>> = control.iter().filter(|r| r[1] == 2.0).collect();
+    assert!(
+        (9000..=9600).contains(&auto.len()),
+        "{} control steps in AUTO (190 s at 50 Hz)",
+        auto.len()
+    );
+    let mut order: Vec<f64> = auto.iter().map(|r| r[18]).collect();
+    order.dedup();
+    assert_eq!(order, vec![0.0, 1.0, 2.0, 3.0], "waypoints in order");
+
+    // The airplane went to each waypoint (home is the first fix, the truth origin within a
+    // few metres), then circled the last at the loiter radius.
+    let waypoints = [(700.0, 0.0), (700.0, 600.0), (-400.0, 600.0), (-400.0, 0.0)];
+    let auto_truth = || truth.iter().filter(|r| (50.0..240.0).contains(&r[0]));
+    for (i, (n, e)) in waypoints.iter().enumerate() {
+        let closest = auto_truth()
+            .map(|r| (r[1] - n).hypot(r[2] - e))
+            .fold(f64::MAX, f64::min);
+        assert!(closest < 60.0, "waypoint {i}: closest {closest:.1} m");
+    }
+    let reached_last = auto
+        .iter()
+        .find(|r| r[18] == 3.0)
+        .map_or(f64::MAX, |r| r[0]);
+    let loiter: Vec<f64> = auto_truth()
+        .filter(|r| r[0] > reached_last + 40.0)
+        .map(|r| (r[1] + 400.0).hypot(r[2]))
+        .collect();
+    assert!(!loiter.is_empty(), "time left to loiter");
+    assert!(
+        loiter.iter().all(|d| (110.0..200.0).contains(d)),
+        "loiter radius 150 m: {:.0}-{:.0} m",
+        loiter.iter().copied().fold(f64::MAX, f64::min),
+        loiter.iter().copied().fold(0.0, f64::max)
+    );
+
+    // Altitude held to the waypoints' (after 20 s to climb between legs) in turbulence.
+    let settled = auto.iter().filter(|r| r[0] > 70.0);
+    let worst = settled.map(|r| (r[6] - r[15]).abs()).fold(0.0, f64::max);
+    assert!(worst < 25.0, "altitude error up to {worst:.1} m");
+
+    // Back to the pilot, who lands.
+    assert!(control.iter().filter(|r| r[0] > 241.0).all(|r| r[1] == 0.0));
+    let end = truth.last().expect("rows");
+    assert_eq!(end[19], 1.0, "on the ground at the end");
+    assert!(end[13] < 5.0, "rolled out: {} m/s", end[13]);
 }
 
 #[test]

@@ -103,6 +103,10 @@ pub struct FlightArgs {
     /// time (UTC). Default: `flights`, or `[log] dir` of the vehicle file.
     #[arg(long)]
     pub log_dir: Option<PathBuf>,
+    /// Waypoints the autopilot flies in AUTO (then it loiters); without a mission AUTO holds
+    /// altitude, heading and airspeed.
+    #[arg(long, value_name = "FILE")]
+    pub mission: Option<PathBuf>,
     /// Write this stream (`imu`, `gps`, `servo`, `health`, `executive`) as CSV text instead
     /// of binary. Repeatable.
     #[arg(long = "text-log", value_name = "STREAM")]
@@ -449,6 +453,11 @@ fn fly_and_report<P: Platform>(
         FlightPlan {
             log_dir: args.log_dir.as_deref().unwrap_or(&log.dir),
             log: LogSettings::from_config(log, &args.text_log),
+            mission: args
+                .mission
+                .as_deref()
+                .map(crate::mission::load)
+                .transpose()?,
             link: if matches!(devices, Devices::None) {
                 None
             } else {

@@ -13,12 +13,14 @@ use crate::timing_log::TimingLog;
 use crate::vehicle::VehicleConfig;
 use serde::Serialize;
 use skyframe_core::comm::LatestSlot;
+use skyframe_core::control::mission::Mission;
 use skyframe_core::devices::DecoderStats;
 use skyframe_core::devices::gps::SentenceKind;
 use skyframe_core::devices::gps::{GpsConfig, GpsFix};
 use skyframe_core::devices::imu::ImuSample;
 use skyframe_core::estimation::EstimatorConfig;
 use skyframe_core::executive::Task;
+use skyframe_core::link::messages::FlightMode;
 use skyframe_core::link::params::ParamTable;
 use skyframe_core::schedule::FrameTable;
 use skyframe_core::tasks::control::{ControlSettings, ControlTask, define_params};
@@ -65,6 +67,8 @@ pub struct FlightPlan<'a> {
     pub devices: Devices<'a>,
     /// The telemetry link; `None` flies without one.
     pub link: Option<LinkPlan>,
+    /// Waypoints for AUTO; without them AUTO holds altitude, heading and airspeed.
+    pub mission: Option<Mission>,
     pub options: RunOptions<'a>,
 }
 
@@ -345,6 +349,11 @@ pub fn fly<P: Platform>(
 
     let health_period_ms = Cell::new(0u32);
     let mode_request = LatestSlot::new();
+    // A loaded mission is what the researcher wants flown when the pilot hands over; the
+    // ground station can still request Stabilise or Manual at any time.
+    if plan.mission.is_some() {
+        mode_request.publish(FlightMode::Auto);
+    }
     let horizon = LatestSlot::new();
     let estimate = LatestSlot::new();
     let params = RefCell::new(ParamTable::new());
@@ -379,7 +388,7 @@ pub fn fly<P: Platform>(
             &estimate,
             &pilot,
             &mode_request,
-            None,
+            plan.mission.as_ref(),
             &params,
             &servo_commands,
         )

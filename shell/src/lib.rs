@@ -17,6 +17,7 @@ pub mod host;
 pub mod idle;
 pub mod link;
 pub mod logwriter;
+pub mod mission;
 pub mod platform;
 pub mod ring;
 pub mod serial;
