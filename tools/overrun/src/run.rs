@@ -288,3 +288,74 @@ pub fn run(command: &[String], output: &OutputOptions) -> ExitCode {
         },
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use std::io::Write as _;
+
+    use skyframe_core::executive::FrameRecord;
+    use skyframe_core::logfmt::{
+        FrameLogFormat, MAX_RECORD_LEN, encode_begin_data, encode_end_data, encode_frame_record,
+    };
+    use skyframe_core::schedule::SHIPPED;
+
+    use super::*;
+
+    fn log_bytes(frames: u64) -> Vec<u8> {
+        let log = FrameLogFormat::new(SHIPPED.tasks).expect("format");
+        let mut out = Vec::new();
+        let mut buf = [0u8; MAX_RECORD_LEN];
+        let n = encode_begin_data(&mut buf, 0).expect("begin");
+        out.extend_from_slice(&buf[..n]);
+        let n = log.encode_declaration(&mut buf, 1).expect("declaration");
+        out.extend_from_slice(&buf[..n]);
+        for k in 0..frames {
+            let mut f = FrameRecord::empty();
+            f.frame = k;
+            f.start_latency_ns = u32::try_from(k).expect("small");
+            f.flags = if k % 10 == 0 { flags::LATE } else { 0 };
+            let n = encode_frame_record(&mut buf, 1, k, &log, &f).expect("record");
+            out.extend_from_slice(&buf[..n]);
+        }
+        let n = encode_end_data(&mut buf, frames).expect("end");
+        out.extend_from_slice(&buf[..n]);
+        out
+    }
+
+    #[test]
+    fn follows_a_growing_file_across_a_cut_record() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let bytes = log_bytes(100);
+        let path = dir.path().join("executive.bin");
+        let mut file = File::create(&path).expect("create");
+        // Cut inside a record: the reader waits for the rest instead of calling it damage.
+        let cut = bytes.len() / 2 + 3;
+        file.write_all(&bytes[..cut]).expect("write");
+        let mut follow = Follow::open(dir.path()).expect("opens");
+        follow.poll().expect("poll");
+        let first = follow.collector.frames.len();
+        assert!(first > 10 && first < 100, "{first}");
+        assert!(follow.collector.damage.is_empty());
+        file.write_all(&bytes[cut..]).expect("write");
+        follow.finish().expect("finish");
+        assert_eq!(follow.collector.frames.len(), 100);
+        assert!(follow.collector.damage.is_empty());
+        let mut live = Live::default();
+        live.update(&follow.collector);
+        assert_eq!((live.seen, live.late, live.max_latency_ns), (100, 10, 99));
+    }
+
+    #[test]
+    fn log_dir_from_the_command_line() {
+        let args = |a: &[&str]| a.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+        assert_eq!(
+            log_dir_of(&args(&["sim", "--log-dir", "/tmp/d"])),
+            PathBuf::from("/tmp/d")
+        );
+        assert_eq!(
+            log_dir_of(&args(&["sim", "--log-dir=x"])),
+            PathBuf::from("x")
+        );
+        assert_eq!(log_dir_of(&args(&["sim"])), PathBuf::from("flights"));
+    }
+}
