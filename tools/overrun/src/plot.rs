@@ -117,7 +117,12 @@ fn draw<DB: DrawingBackend>(
     match kind {
         Kind::Histogram => histogram(data, root),
         Kind::ExecVsBudget => exec_vs_budget(data, root),
-        Kind::WorstFrames => worst_frames(data, root),
+        Kind::WorstFrames => match report::matching_table(data.tasks) {
+            Some(table) => {
+                worst_major_frames(data, table.minor_frames(), table.minor_frame_ns, root)
+            }
+            None => worst_frames(data, root),
+        },
     }
 }
 
@@ -368,6 +373,121 @@ fn worst_frames<DB: DrawingBackend>(
             )])
             .map_err(err)?;
     }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .label_font((FONT, 13))
+        .position(SeriesLabelPosition::UpperRight)
+        .draw()
+        .map_err(err)?;
+    Ok(())
+}
+
+/// The worst major frames as timelines from the major frame's first release: each minor
+/// frame's start latency (grey), its tasks' steps in table order, its overhead (dark); thin
+/// lines mark the minor frames' releases. Drawn when the frame table is known.
+fn worst_major_frames<DB: DrawingBackend>(
+    data: &Data<'_>,
+    minor_frames: usize,
+    minor_ns: u64,
+    root: &DrawingArea<DB, Shift>,
+) -> Result<(), String> {
+    let worst = report::worst_major(
+        data.frames,
+        minor_frames,
+        data.report.worst_frames.len().max(1),
+    );
+    let rows = worst.len().max(1);
+    let per = (minor_frames as u64).max(1);
+    let ms = |ns: u64| ns as f64 / 1e6;
+    // Each minor frame's release within its major frame (ms).
+    let at = |f: &FrameRecord| ms((f.frame % per) * minor_ns);
+    let right = worst
+        .iter()
+        .flat_map(|(_, frames)| frames.iter().map(|f| at(f) + ms(report::end_ns(f))))
+        .fold(ms(per * minor_ns), f64::max);
+    let labels: Vec<String> = worst.iter().map(|(m, _)| format!("major {m}")).collect();
+    let mut chart = ChartBuilder::on(root)
+        .caption(
+            "Worst major frames: latency (grey), tasks in table order, overhead (dark)",
+            (FONT, 18),
+        )
+        .margin(15)
+        .x_label_area_size(45)
+        .y_label_area_size(110)
+        .build_cartesian_2d(0.0..right * 1.02, -0.5..rows as f64 - 0.5)
+        .map_err(err)?;
+    chart
+        .configure_mesh()
+        .disable_mesh()
+        .y_labels(rows + 1)
+        .y_label_formatter(&|y: &f64| {
+            let i = y.round();
+            if (y - i).abs() < 1e-6 && i >= 0.0 {
+                labels.get(i as usize).cloned().unwrap_or_default()
+            } else {
+                String::new()
+            }
+        })
+        .x_desc("time since the major frame's first release (ms)")
+        .label_style((FONT, 14))
+        .draw()
+        .map_err(err)?;
+    chart
+        .draw_series((0..=per).map(|k| {
+            let x = ms(k * minor_ns);
+            PathElement::new(
+                vec![(x, -0.5), (x, rows as f64 - 0.5)],
+                RGBColor(220, 220, 220),
+            )
+        }))
+        .map_err(err)?;
+    let bar = |row: usize, from: f64, to: f64| {
+        let y = row as f64;
+        [(from, y - 0.35), (to, y + 0.35)]
+    };
+    // (row, frame, where its next step starts)
+    let mut steps: Vec<(usize, &FrameRecord, f64)> = worst
+        .iter()
+        .enumerate()
+        .flat_map(|(row, (_, frames))| frames.iter().map(move |f| (row, *f, 0.0)))
+        .collect();
+    for step in &mut steps {
+        step.2 = at(step.1) + ms(u64::from(step.1.start_latency_ns));
+    }
+    chart
+        .draw_series(steps.iter().map(|(row, f, start)| {
+            Rectangle::new(bar(*row, at(f), *start), RGBColor(200, 200, 200).filled())
+        }))
+        .map_err(err)?;
+    for (i, name) in data.tasks.iter().enumerate() {
+        let mut bars = Vec::new();
+        for (row, f, start) in &mut steps {
+            if i < 32 && f.ran & (1 << i) != 0 {
+                let exec = ms(u64::from(f.exec_ns.get(i).copied().unwrap_or(0)));
+                bars.push(Rectangle::new(
+                    bar(*row, *start, *start + exec),
+                    colour(i).filled(),
+                ));
+                *start += exec;
+            }
+        }
+        let c = colour(i);
+        chart
+            .draw_series(bars)
+            .map_err(err)?
+            .label(name.clone())
+            .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 10, y + 5)], c.filled()));
+    }
+    chart
+        .draw_series(steps.iter().map(|(row, f, start)| {
+            Rectangle::new(
+                bar(*row, *start, at(f) + ms(report::end_ns(f))),
+                RGBColor(60, 60, 60).filled(),
+            )
+        }))
+        .map_err(err)?;
     chart
         .configure_series_labels()
         .background_style(WHITE.mix(0.8))

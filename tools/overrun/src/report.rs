@@ -371,6 +371,30 @@ pub fn worst(frames: &[FrameRecord], n: usize) -> Vec<&FrameRecord> {
     sorted
 }
 
+/// The `n` worst major frames (of `minor_frames` minor frames each): ranked by their worst
+/// minor frame's start latency + work, worst first (earlier on ties); each with its frames.
+pub fn worst_major(
+    frames: &[FrameRecord],
+    minor_frames: usize,
+    n: usize,
+) -> Vec<(u64, Vec<&FrameRecord>)> {
+    let per = (minor_frames as u64).max(1);
+    let mut majors: Vec<(u64, u64, Vec<&FrameRecord>)> = Vec::new();
+    for f in frames {
+        let major = f.frame / per;
+        match majors.last_mut() {
+            Some((m, score, members)) if *m == major => {
+                *score = (*score).max(end_ns(f));
+                members.push(f);
+            }
+            _ => majors.push((major, end_ns(f), vec![f])),
+        }
+    }
+    majors.sort_by(|a, b| b.1.cmp(&a.1).then(a.0.cmp(&b.0)));
+    majors.truncate(n);
+    majors.into_iter().map(|(m, _, f)| (m, f)).collect()
+}
+
 fn us(ns: u64) -> String {
     format!("{:.1}", ns as f64 / 1000.0)
 }
@@ -571,5 +595,26 @@ mod tests {
         // servo = task 1: tasks 0 and 1 ran up to it, 3 ran in all: overhead 30*2/3 = 20.
         assert_eq!(end_to_end_ns(&f, 0, 1), Some(50 + 300 + 20));
         assert_eq!(end_to_end_ns(&f, 0, 2), None);
+    }
+
+    #[test]
+    fn worst_major_frames_rank_by_their_worst_minor_frame() {
+        let frames: Vec<FrameRecord> = (0..30u64)
+            .map(|k| {
+                let mut f = FrameRecord::empty();
+                f.frame = k;
+                f.work_ns = match k {
+                    3 => 500,
+                    25 => 900,
+                    17 => 500,
+                    _ => 10,
+                };
+                f
+            })
+            .collect();
+        let worst = worst_major(&frames, 10, 2);
+        let majors: Vec<u64> = worst.iter().map(|(m, _)| *m).collect();
+        assert_eq!(majors, [2, 0]);
+        assert_eq!(worst.first().map(|(_, f)| f.len()), Some(10));
     }
 }
