@@ -181,6 +181,22 @@ fn flag_names(f: u8) -> Vec<&'static str> {
     names
 }
 
+/// How many times task `i` is released in frames `from..to` (whole major frames counted
+/// at once, so a damaged `missed_before` cannot make this slow).
+pub fn released_between(table: &FrameTable, i: usize, from: u64, to: u64) -> u64 {
+    let per = table.frames.len() as u64;
+    if per == 0 || to <= from {
+        return 0;
+    }
+    let in_major = table.frames.iter().filter(|&&m| bit(m, i)).count() as u64;
+    let len = to - from;
+    let whole = len / per;
+    let rest = (from + whole * per..to)
+        .filter(|&k| bit(table.released(k), i))
+        .count() as u64;
+    whole * in_major + rest
+}
+
 pub fn end_ns(f: &FrameRecord) -> u64 {
     u64::from(f.start_latency_ns) + u64::from(f.work_ns)
 }
@@ -247,9 +263,8 @@ pub fn build(input: &Input<'_>) -> Report {
                 frames
                     .iter()
                     .map(|f| {
-                        (f.frame.saturating_sub(u64::from(f.missed_before))..f.frame)
-                            .filter(|&k| bit(t.released(k), i))
-                            .count() as u64
+                        let from = f.frame.saturating_sub(u64::from(f.missed_before));
+                        released_between(t, i, from, f.frame)
                     })
                     .sum::<u64>()
             });
@@ -595,6 +610,23 @@ mod tests {
         // servo = task 1: tasks 0 and 1 ran up to it, 3 ran in all: overhead 30*2/3 = 20.
         assert_eq!(end_to_end_ns(&f, 0, 1), Some(50 + 300 + 20));
         assert_eq!(end_to_end_ns(&f, 0, 2), None);
+    }
+
+    #[test]
+    fn releases_between_frames_match_counting_them() {
+        let t = &SHIPPED;
+        for i in 0..t.tasks.len() {
+            for (from, to) in [(0, 0), (3, 4), (7, 35), (1, 1000), (998, 1000)] {
+                let counted = (from..to).filter(|&k| bit(t.released(k), i)).count() as u64;
+                assert_eq!(
+                    released_between(t, i, from, to),
+                    counted,
+                    "{i} {from}..{to}"
+                );
+            }
+        }
+        // A damaged missed_before is quick.
+        assert!(released_between(t, 0, 0, u64::from(u32::MAX)) > 0);
     }
 
     #[test]
