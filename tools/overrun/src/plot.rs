@@ -1,0 +1,500 @@
+//! The report's figures, PNG and SVG each: `latency_histogram` (frame start latency),
+//! `exec_vs_budget` (execution-time box per task with its budget), `worst_frames` (timeline
+//! of the worst frames' tasks).
+//!
+//! Drawn as skyframe-log draws: plotters' bitmap backend (encoded with `png`) and SVG
+//! backend, text through ab_glyph with the DejaVu Sans font embedded by the `dejavu` crate.
+
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::Path;
+use std::sync::Once;
+
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use skyframe_core::executive::FrameRecord;
+
+use crate::report::{self, Report};
+
+const FONT: &str = "sans-serif";
+const SIZE: (u32, u32) = (1000, 600);
+
+const PALETTE: [RGBColor; 10] = [
+    RGBColor(31, 119, 180),
+    RGBColor(255, 127, 14),
+    RGBColor(44, 160, 44),
+    RGBColor(148, 103, 189),
+    RGBColor(140, 86, 75),
+    RGBColor(227, 119, 194),
+    RGBColor(188, 189, 34),
+    RGBColor(23, 190, 207),
+    RGBColor(127, 127, 127),
+    RGBColor(214, 39, 40),
+];
+
+fn colour(i: usize) -> RGBColor {
+    PALETTE.get(i % PALETTE.len()).copied().unwrap_or(BLACK)
+}
+
+fn register_font() -> Result<(), String> {
+    static REGISTER: Once = Once::new();
+    let mut result = Ok(());
+    REGISTER.call_once(|| {
+        result = plotters::style::register_font(FONT, FontStyle::Normal, dejavu::sans::regular())
+            .map_err(|_| "the embedded font could not be loaded".to_string());
+    });
+    result
+}
+
+#[derive(Clone, Copy)]
+enum Kind {
+    Histogram,
+    ExecVsBudget,
+    WorstFrames,
+}
+
+struct Data<'a> {
+    report: &'a Report,
+    frames: &'a [FrameRecord],
+    tasks: &'a [String],
+}
+
+/// Draws every figure into `dir` (created if missing).
+pub fn draw_all(
+    dir: &Path,
+    report: &Report,
+    frames: &[FrameRecord],
+    tasks: &[String],
+) -> Result<(), String> {
+    std::fs::create_dir_all(dir).map_err(|e| format!("{}: cannot create: {e}", dir.display()))?;
+    register_font()?;
+    let data = Data {
+        report,
+        frames,
+        tasks,
+    };
+    for (name, kind) in [
+        ("latency_histogram", Kind::Histogram),
+        ("exec_vs_budget", Kind::ExecVsBudget),
+        ("worst_frames", Kind::WorstFrames),
+    ] {
+        let svg = dir.join(format!("{name}.svg"));
+        let fail = |path: &Path, e: String| format!("{}: {e}", path.display());
+        {
+            let root = SVGBackend::new(&svg, SIZE).into_drawing_area();
+            draw(kind, &data, &root).map_err(|e| fail(&svg, e))?;
+            root.present().map_err(|e| fail(&svg, e.to_string()))?;
+        }
+        let png = dir.join(format!("{name}.png"));
+        let (w, h) = SIZE;
+        let mut rgb = vec![0u8; (w as usize) * (h as usize) * 3];
+        {
+            let root = BitMapBackend::with_buffer(&mut rgb, SIZE).into_drawing_area();
+            draw(kind, &data, &root).map_err(|e| fail(&png, e))?;
+            root.present().map_err(|e| fail(&png, e.to_string()))?;
+        }
+        write_png(&png, SIZE, &rgb).map_err(|e| fail(&png, e))?;
+    }
+    Ok(())
+}
+
+fn write_png(path: &Path, (w, h): (u32, u32), rgb: &[u8]) -> Result<(), String> {
+    let file = File::create(path).map_err(|e| e.to_string())?;
+    let mut encoder = png::Encoder::new(BufWriter::new(file), w, h);
+    encoder.set_color(png::ColorType::Rgb);
+    encoder.set_depth(png::BitDepth::Eight);
+    let mut writer = encoder.write_header().map_err(|e| e.to_string())?;
+    writer.write_image_data(rgb).map_err(|e| e.to_string())?;
+    writer.finish().map_err(|e| e.to_string())
+}
+
+fn draw<DB: DrawingBackend>(
+    kind: Kind,
+    data: &Data<'_>,
+    root: &DrawingArea<DB, Shift>,
+) -> Result<(), String> {
+    root.fill(&WHITE).map_err(|e| e.to_string())?;
+    match kind {
+        Kind::Histogram => histogram(data, root),
+        Kind::ExecVsBudget => exec_vs_budget(data, root),
+        Kind::WorstFrames => match report::matching_table(data.tasks) {
+            Some(table) => {
+                worst_major_frames(data, table.minor_frames(), table.minor_frame_ns, root)
+            }
+            None => worst_frames(data, root),
+        },
+    }
+}
+
+fn err(e: impl std::fmt::Display) -> String {
+    e.to_string()
+}
+
+/// Frame start latency histogram, counts on a log axis (the tail stays visible).
+fn histogram<DB: DrawingBackend>(
+    data: &Data<'_>,
+    root: &DrawingArea<DB, Shift>,
+) -> Result<(), String> {
+    const BINS: usize = 60;
+    let values: Vec<f64> = data
+        .frames
+        .iter()
+        .map(|f| f64::from(f.start_latency_ns) / 1000.0)
+        .collect();
+    let max = values.iter().copied().fold(0.0, f64::max).max(1.0);
+    let width = max / BINS as f64;
+    let mut counts = [0u64; BINS];
+    for v in &values {
+        let bin = ((v / width) as usize).min(BINS - 1);
+        if let Some(c) = counts.get_mut(bin) {
+            *c += 1;
+        }
+    }
+    let top = counts.iter().copied().max().unwrap_or(1).max(1) as f64;
+    let mut chart = ChartBuilder::on(root)
+        .caption(
+            format!("Frame start latency ({} frames)", values.len()),
+            (FONT, 22),
+        )
+        .margin(15)
+        .x_label_area_size(45)
+        .y_label_area_size(70)
+        .build_cartesian_2d(0.0..max * 1.02, (0.5..top * 2.0).log_scale())
+        .map_err(err)?;
+    chart
+        .configure_mesh()
+        .x_desc("start latency (us)")
+        .y_desc("frames")
+        .label_style((FONT, 14))
+        .draw()
+        .map_err(err)?;
+    chart
+        .draw_series(
+            counts
+                .iter()
+                .enumerate()
+                .filter(|(_, c)| **c > 0)
+                .map(|(i, &c)| {
+                    let x0 = i as f64 * width;
+                    Rectangle::new([(x0, 0.5), (x0 + width, c as f64)], colour(0).filled())
+                }),
+        )
+        .map_err(err)?;
+    Ok(())
+}
+
+/// Execution-time boxes per task (quartiles, whiskers min..max, p99 dot) with the budget.
+fn exec_vs_budget<DB: DrawingBackend>(
+    data: &Data<'_>,
+    root: &DrawingArea<DB, Shift>,
+) -> Result<(), String> {
+    const FLOOR_US: f64 = 0.1;
+    let tasks = &data.report.tasks;
+    let us = |ns: u64| (ns as f64 / 1000.0).max(FLOOR_US);
+    let top = tasks
+        .iter()
+        .flat_map(|t| {
+            [
+                t.exec_ns.as_ref().map_or(FLOOR_US, |e| us(e.max)),
+                t.budget_ns.map_or(FLOOR_US, us),
+            ]
+        })
+        .fold(1.0, f64::max);
+    let n = tasks.len().max(1);
+    let names: Vec<String> = tasks.iter().map(|t| t.name.clone()).collect();
+    let mut chart = ChartBuilder::on(root)
+        .caption(
+            "Execution time per task (box p25-p75, line p50, whiskers min-max, dot p99; red: budget)",
+            (FONT, 18),
+        )
+        .margin(15)
+        .x_label_area_size(45)
+        .y_label_area_size(70)
+        .build_cartesian_2d(-0.5..n as f64 - 0.5, (FLOOR_US..top * 2.0).log_scale())
+        .map_err(err)?;
+    chart
+        .configure_mesh()
+        .disable_x_mesh()
+        .x_labels(n + 1)
+        .x_label_formatter(&|x: &f64| {
+            let i = x.round();
+            if (x - i).abs() < 1e-6 && i >= 0.0 {
+                names.get(i as usize).cloned().unwrap_or_default()
+            } else {
+                String::new()
+            }
+        })
+        .y_desc("execution time (us, log)")
+        .label_style((FONT, 14))
+        .draw()
+        .map_err(err)?;
+    for (i, t) in tasks.iter().enumerate() {
+        let x = i as f64;
+        let c = colour(i);
+        if let Some(e) = &t.exec_ns {
+            chart
+                .draw_series([
+                    PathElement::new(vec![(x, us(e.min)), (x, us(e.max))], c.stroke_width(1)),
+                    PathElement::new(
+                        vec![(x - 0.15, us(e.max)), (x + 0.15, us(e.max))],
+                        c.stroke_width(1),
+                    ),
+                    PathElement::new(
+                        vec![(x - 0.15, us(e.min)), (x + 0.15, us(e.min))],
+                        c.stroke_width(1),
+                    ),
+                ])
+                .map_err(err)?;
+            chart
+                .draw_series([Rectangle::new(
+                    [(x - 0.25, us(e.p25)), (x + 0.25, us(e.p75))],
+                    c.mix(0.5).filled(),
+                )])
+                .map_err(err)?;
+            chart
+                .draw_series([
+                    PathElement::new(
+                        vec![(x - 0.25, us(e.p50)), (x + 0.25, us(e.p50))],
+                        BLACK.stroke_width(2),
+                    ),
+                    PathElement::new(vec![(x, us(e.p99)), (x, us(e.p99))], BLACK),
+                ])
+                .map_err(err)?;
+            chart
+                .draw_series([Circle::new((x, us(e.p99)), 3, BLACK.filled())])
+                .map_err(err)?;
+        }
+        if let Some(b) = t.budget_ns {
+            chart
+                .draw_series([PathElement::new(
+                    vec![(x - 0.4, us(b)), (x + 0.4, us(b))],
+                    RED.stroke_width(3),
+                )])
+                .map_err(err)?;
+        }
+    }
+    Ok(())
+}
+
+/// The worst frames as timelines from their release: start latency, then each task's step in
+/// table order, then the executive's overhead; the red line is the minor frame's end.
+fn worst_frames<DB: DrawingBackend>(
+    data: &Data<'_>,
+    root: &DrawingArea<DB, Shift>,
+) -> Result<(), String> {
+    let worst = report::worst(data.frames, data.report.worst_frames.len().max(1));
+    let rows = worst.len().max(1);
+    let minor_ns = report::matching_table(data.tasks).map(|t| t.minor_frame_ns);
+    let right = worst
+        .iter()
+        .map(|f| report::end_ns(f) as f64 / 1000.0)
+        .chain(minor_ns.map(|m| m as f64 / 1000.0))
+        .fold(1.0, f64::max);
+    let labels: Vec<String> = worst.iter().map(|f| format!("frame {}", f.frame)).collect();
+    let mut chart = ChartBuilder::on(root)
+        .caption(
+            "Worst frames: latency (grey), tasks in table order, overhead (dark); red: frame end",
+            (FONT, 18),
+        )
+        .margin(15)
+        .x_label_area_size(45)
+        .y_label_area_size(110)
+        .build_cartesian_2d(0.0..right * 1.05, -0.5..rows as f64 - 0.5)
+        .map_err(err)?;
+    chart
+        .configure_mesh()
+        .disable_y_mesh()
+        .y_labels(rows + 1)
+        .y_label_formatter(&|y: &f64| {
+            let i = y.round();
+            if (y - i).abs() < 1e-6 && i >= 0.0 {
+                labels.get(i as usize).cloned().unwrap_or_default()
+            } else {
+                String::new()
+            }
+        })
+        .x_desc("time since the frame's release (us)")
+        .label_style((FONT, 14))
+        .draw()
+        .map_err(err)?;
+    let bar = |row: usize, from: f64, to: f64| {
+        let y = row as f64;
+        [(from, y - 0.35), (to, y + 0.35)]
+    };
+    chart
+        .draw_series(worst.iter().enumerate().map(|(row, f)| {
+            Rectangle::new(
+                bar(row, 0.0, f64::from(f.start_latency_ns) / 1000.0),
+                RGBColor(200, 200, 200).filled(),
+            )
+        }))
+        .map_err(err)?;
+    // Each task's start in each frame: latency + the steps before it.
+    let mut cursor: Vec<f64> = worst
+        .iter()
+        .map(|f| f64::from(f.start_latency_ns) / 1000.0)
+        .collect();
+    for (i, name) in data.tasks.iter().enumerate() {
+        let mut bars = Vec::new();
+        for (row, f) in worst.iter().enumerate() {
+            if i < 32 && f.ran & (1 << i) != 0 {
+                let exec = f64::from(f.exec_ns.get(i).copied().unwrap_or(0)) / 1000.0;
+                if let Some(start) = cursor.get_mut(row) {
+                    bars.push(Rectangle::new(
+                        bar(row, *start, *start + exec),
+                        colour(i).filled(),
+                    ));
+                    *start += exec;
+                }
+            }
+        }
+        let c = colour(i);
+        chart
+            .draw_series(bars)
+            .map_err(err)?
+            .label(name.clone())
+            .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 10, y + 5)], c.filled()));
+    }
+    chart
+        .draw_series(worst.iter().enumerate().map(|(row, f)| {
+            let start = cursor.get(row).copied().unwrap_or(0.0);
+            Rectangle::new(
+                bar(row, start, report::end_ns(f) as f64 / 1000.0),
+                RGBColor(60, 60, 60).filled(),
+            )
+        }))
+        .map_err(err)?;
+    if let Some(m) = minor_ns {
+        let x = m as f64 / 1000.0;
+        chart
+            .draw_series([PathElement::new(
+                vec![(x, -0.5), (x, rows as f64 - 0.5)],
+                RED.stroke_width(2),
+            )])
+            .map_err(err)?;
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .label_font((FONT, 13))
+        .position(SeriesLabelPosition::UpperRight)
+        .draw()
+        .map_err(err)?;
+    Ok(())
+}
+
+/// The worst major frames as timelines from the major frame's first release: each minor
+/// frame's start latency (grey), its tasks' steps in table order, its overhead (dark); thin
+/// lines mark the minor frames' releases. Drawn when the frame table is known.
+fn worst_major_frames<DB: DrawingBackend>(
+    data: &Data<'_>,
+    minor_frames: usize,
+    minor_ns: u64,
+    root: &DrawingArea<DB, Shift>,
+) -> Result<(), String> {
+    let worst = report::worst_major(
+        data.frames,
+        minor_frames,
+        data.report.worst_frames.len().max(1),
+    );
+    let rows = worst.len().max(1);
+    let per = (minor_frames as u64).max(1);
+    let ms = |ns: u64| ns as f64 / 1e6;
+    // Each minor frame's release within its major frame (ms).
+    let at = |f: &FrameRecord| ms((f.frame % per) * minor_ns);
+    let right = worst
+        .iter()
+        .flat_map(|(_, frames)| frames.iter().map(|f| at(f) + ms(report::end_ns(f))))
+        .fold(ms(per * minor_ns), f64::max);
+    let labels: Vec<String> = worst.iter().map(|(m, _)| format!("major {m}")).collect();
+    let mut chart = ChartBuilder::on(root)
+        .caption(
+            "Worst major frames: latency (grey), tasks in table order, overhead (dark)",
+            (FONT, 18),
+        )
+        .margin(15)
+        .x_label_area_size(45)
+        .y_label_area_size(110)
+        .build_cartesian_2d(0.0..right * 1.02, -0.5..rows as f64 - 0.5)
+        .map_err(err)?;
+    chart
+        .configure_mesh()
+        .disable_mesh()
+        .y_labels(rows + 1)
+        .y_label_formatter(&|y: &f64| {
+            let i = y.round();
+            if (y - i).abs() < 1e-6 && i >= 0.0 {
+                labels.get(i as usize).cloned().unwrap_or_default()
+            } else {
+                String::new()
+            }
+        })
+        .x_desc("time since the major frame's first release (ms)")
+        .label_style((FONT, 14))
+        .draw()
+        .map_err(err)?;
+    chart
+        .draw_series((0..=per).map(|k| {
+            let x = ms(k * minor_ns);
+            PathElement::new(
+                vec![(x, -0.5), (x, rows as f64 - 0.5)],
+                RGBColor(220, 220, 220),
+            )
+        }))
+        .map_err(err)?;
+    let bar = |row: usize, from: f64, to: f64| {
+        let y = row as f64;
+        [(from, y - 0.35), (to, y + 0.35)]
+    };
+    // (row, frame, where its next step starts)
+    let mut steps: Vec<(usize, &FrameRecord, f64)> = worst
+        .iter()
+        .enumerate()
+        .flat_map(|(row, (_, frames))| frames.iter().map(move |f| (row, *f, 0.0)))
+        .collect();
+    for step in &mut steps {
+        step.2 = at(step.1) + ms(u64::from(step.1.start_latency_ns));
+    }
+    chart
+        .draw_series(steps.iter().map(|(row, f, start)| {
+            Rectangle::new(bar(*row, at(f), *start), RGBColor(200, 200, 200).filled())
+        }))
+        .map_err(err)?;
+    for (i, name) in data.tasks.iter().enumerate() {
+        let mut bars = Vec::new();
+        for (row, f, start) in &mut steps {
+            if i < 32 && f.ran & (1 << i) != 0 {
+                let exec = ms(u64::from(f.exec_ns.get(i).copied().unwrap_or(0)));
+                bars.push(Rectangle::new(
+                    bar(*row, *start, *start + exec),
+                    colour(i).filled(),
+                ));
+                *start += exec;
+            }
+        }
+        let c = colour(i);
+        chart
+            .draw_series(bars)
+            .map_err(err)?
+            .label(name.clone())
+            .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 10, y + 5)], c.filled()));
+    }
+    chart
+        .draw_series(steps.iter().map(|(row, f, start)| {
+            Rectangle::new(
+                bar(*row, *start, at(f) + ms(report::end_ns(f))),
+                RGBColor(60, 60, 60).filled(),
+            )
+        }))
+        .map_err(err)?;
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .label_font((FONT, 13))
+        .position(SeriesLabelPosition::UpperRight)
+        .draw()
+        .map_err(err)?;
+    Ok(())
+}
