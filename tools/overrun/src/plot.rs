@@ -32,6 +32,17 @@ const PALETTE: [RGBColor; 10] = [
     RGBColor(214, 39, 40),
 ];
 
+/// The name of the category drawn at integer position `at` of a category axis; nothing
+/// between categories (the mesh asks for labels there too).
+fn category_label(names: &[String], at: f64) -> String {
+    let i = at.round();
+    if (at - i).abs() < 1e-6 && i >= 0.0 {
+        names.get(i as usize).cloned().unwrap_or_default()
+    } else {
+        String::new()
+    }
+}
+
 fn colour(i: usize) -> RGBColor {
     PALETTE.get(i % PALETTE.len()).copied().unwrap_or(BLACK)
 }
@@ -216,14 +227,7 @@ fn exec_vs_budget<DB: DrawingBackend>(
         .configure_mesh()
         .disable_x_mesh()
         .x_labels(n + 1)
-        .x_label_formatter(&|x: &f64| {
-            let i = x.round();
-            if (x - i).abs() < 1e-6 && i >= 0.0 {
-                names.get(i as usize).cloned().unwrap_or_default()
-            } else {
-                String::new()
-            }
-        })
+        .x_label_formatter(&|x: &f64| category_label(&names, *x))
         .y_desc("execution time (us, log)")
         .label_style((FONT, 14))
         .draw()
@@ -305,14 +309,7 @@ fn worst_frames<DB: DrawingBackend>(
         .configure_mesh()
         .disable_y_mesh()
         .y_labels(rows + 1)
-        .y_label_formatter(&|y: &f64| {
-            let i = y.round();
-            if (y - i).abs() < 1e-6 && i >= 0.0 {
-                labels.get(i as usize).cloned().unwrap_or_default()
-            } else {
-                String::new()
-            }
-        })
+        .y_label_formatter(&|y: &f64| category_label(&labels, *y))
         .x_desc("time since the frame's release (us)")
         .label_style((FONT, 14))
         .draw()
@@ -422,14 +419,7 @@ fn worst_major_frames<DB: DrawingBackend>(
         .configure_mesh()
         .disable_mesh()
         .y_labels(rows + 1)
-        .y_label_formatter(&|y: &f64| {
-            let i = y.round();
-            if (y - i).abs() < 1e-6 && i >= 0.0 {
-                labels.get(i as usize).cloned().unwrap_or_default()
-            } else {
-                String::new()
-            }
-        })
+        .y_label_formatter(&|y: &f64| category_label(&labels, *y))
         .x_desc("time since the major frame's first release (ms)")
         .label_style((FONT, 14))
         .draw()
