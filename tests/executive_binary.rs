@@ -521,11 +521,11 @@ fn a_run_logs_its_timing_records_readably_for_skyframe_log() {
         .find(|f| f.ends_with("/executive.bin"))
         .expect("executive log");
     assert!(file.starts_with(dir.to_str().expect("utf-8")), "{file}");
-    // Definition, comment, begin, one record per frame run (a loaded machine may miss
-    // whole frames, which leave no record), end.
+    // Definition, comment, begin, the timer check (its definition, comment and record), one
+    // record per frame run (a loaded machine may miss whole frames, which leave no record), end.
     let frames_run = s["frames"].as_u64().unwrap_or(0);
     assert!(frames_run >= 45, "{s}");
-    assert_eq!(s["log_streams"][0]["records_written"], 4 + frames_run);
+    assert_eq!(s["log_streams"][0]["records_written"], 7 + frames_run);
     // health.bin: a snapshot of the 8 tasks at 0 s and at shutdown, between its begin/end.
     assert_eq!(s["log_streams"][1]["name"], "health");
     assert_eq!(s["log_streams"][1]["records_written"], 2 + 1 + 16 + 1);
@@ -547,8 +547,37 @@ fn a_run_logs_its_timing_records_readably_for_skyframe_log() {
         String::from_utf8_lossy(&info.stderr)
     );
     assert!(text.contains("1: data blocks 50"), "{text}");
+    assert!(text.contains("2: data blocks 1"), "{text}");
     assert!(text.contains("closed cleanly: yes"), "{text}");
     assert!(text.contains("exec_ns_imu"), "{text}");
+
+    // The start-up timer check is in the log with the figures the summary gives.
+    let csv = dir.join("csv");
+    let convert = Command::new(skyframe_tests::binary("skyframe-log", "skyframe-log"))
+        .args(["to-csv", *file, "--out-dir"])
+        .arg(&csv)
+        .output()
+        .expect("skyframe-log runs");
+    assert!(convert.status.success());
+    let text = std::fs::read_to_string(csv.join("executive.2.csv")).expect("timer check CSV");
+    assert!(text.contains("% time,period_us,samples,"), "{text}");
+    let row: Vec<f64> = text
+        .lines()
+        .filter(|l| !l.starts_with('%'))
+        .flat_map(|l| l.split(',').map(|v| v.parse().unwrap_or(f64::NAN)))
+        .collect();
+    let check = &s["timer_check"];
+    let latency = &check["wakeup_latency_us"];
+    let close = |logged: f64, reported: &Value| {
+        (logged - reported.as_f64().unwrap_or(f64::NAN)).abs() <= 0.051
+    };
+    assert_eq!(row.len(), 10, "one record: {text}");
+    assert_eq!(Some(row[1] as u64), check["period_us"].as_u64());
+    assert_eq!(Some(row[2] as u64), latency["count"].as_u64());
+    assert!(close(row[5], &latency["p99"]), "{text} vs {check}");
+    assert!(close(row[7], &latency["max"]), "{text} vs {check}");
+    assert!(close(row[8], &check["margin_us"]), "{text} vs {check}");
+    assert_eq!(row[9] == 1.0, check["over_margin"] == true);
 }
 
 #[test]

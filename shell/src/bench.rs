@@ -147,7 +147,7 @@ pub fn run<P: Platform>(
             },
             ..RunOptions::new(Some(each), stop)
         },
-        |record| {
+        |record: &skyframe_core::executive::FrameRecord| {
             latencies.push(u64::from(record.start_latency_ns));
             overheads.push(u64::from(record.overhead_ns));
         },

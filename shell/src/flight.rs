@@ -503,11 +503,9 @@ pub fn fly<P: Platform>(
         Some((world, link, truth)) => {
             let sim_platform =
                 SimPlatform::new(platform, *world, link, Some(truth), time_origin_ns);
-            run_executive(&sim_platform, table, &mut tasks, options, |r| {
-                timing.record(r)
-            })
+            run_executive(&sim_platform, table, &mut tasks, options, &mut timing)
         }
-        None => run_executive(platform, table, &mut tasks, options, |r| timing.record(r)),
+        None => run_executive(platform, table, &mut tasks, options, &mut timing),
     };
     drop(tasks);
 

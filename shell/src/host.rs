@@ -154,15 +154,29 @@ pub struct TaskAtEnd {
     pub degraded: Option<&'static str>,
 }
 
+/// Where a run's timing goes: every frame's record, and first the start-up timer check (so a
+/// flight's log says how late its timer was, even if the flight dies). A closure taking
+/// `&FrameRecord` is a sink that ignores the check.
+pub trait TimingSink: Send {
+    fn frame(&mut self, record: &FrameRecord);
+    fn timer_check(&mut self, _check: &TimerCheck) {}
+}
+
+impl<F: FnMut(&FrameRecord) + Send> TimingSink for F {
+    fn frame(&mut self, record: &FrameRecord) {
+        self(record);
+    }
+}
+
 /// Runs `tasks` (one per slot of `table`, in table order) until the duration elapses or
-/// `stop` is set. Each frame's timing record reaches `on_record` on a separate thread; all of
-/// them, in order, before this function returns.
+/// `stop` is set. The timer check reaches `timing` first; then each frame's timing record, on
+/// a separate thread; all of them, in order, before this function returns.
 pub fn run_executive<P: Platform>(
     platform: &P,
     table: &'static FrameTable,
     tasks: &mut [&mut dyn Task],
     options: RunOptions<'_>,
-    on_record: impl FnMut(&FrameRecord) + Send,
+    mut timing: impl TimingSink,
 ) -> Result<RunSummary, HostError> {
     let realtime = platform.make_realtime(&options.realtime);
     for refusal in realtime.refusals() {
@@ -182,6 +196,9 @@ pub fn run_executive<P: Platform>(
             check.margin_us
         );
     }
+    if let Some(check) = &timer_check {
+        timing.timer_check(check);
+    }
     let (producer, consumer) = rtrb::RingBuffer::<FrameRecord>::new(TIMING_RING);
     let executive_done = AtomicBool::new(false);
 
@@ -190,7 +207,7 @@ pub fn run_executive<P: Platform>(
             .name("timing-drain".into())
             .stack_size(256 * 1024)
             .spawn_scoped(scope, || {
-                drain_records(consumer, &executive_done, on_record)
+                drain_records(consumer, &executive_done, |r| timing.frame(r))
             })
             .map_err(HostError::Spawn)?;
 
@@ -368,7 +385,13 @@ mod tests {
             },
             ..RunOptions::new(Some(Duration::from_secs(1)), &stop)
         };
-        match run_executive(&Oversleeping, &SHIPPED, &mut tasks, refuse, |_| {}) {
+        match run_executive(
+            &Oversleeping,
+            &SHIPPED,
+            &mut tasks,
+            refuse,
+            |_: &FrameRecord| {},
+        ) {
             Err(HostError::TimerTooLate(check)) => {
                 assert_eq!(check.wakeup_latency_us.max, 3000.0);
                 assert_eq!(check.margin_us, 2000.0);
@@ -376,8 +399,14 @@ mod tests {
             other => panic!("expected a refusal, got {other:?}"),
         }
         let warn = RunOptions::new(Some(Duration::from_secs(1)), &stop);
-        let summary =
-            run_executive(&Oversleeping, &SHIPPED, &mut tasks, warn, |_| {}).expect("flies");
+        let summary = run_executive(
+            &Oversleeping,
+            &SHIPPED,
+            &mut tasks,
+            warn,
+            |_: &FrameRecord| {},
+        )
+        .expect("flies");
         let check = summary.timer_check.expect("checked");
         assert!(check.over_margin);
         assert_eq!(
@@ -401,7 +430,7 @@ mod tests {
             &SHIPPED,
             &mut tasks,
             options(&stop, 60, FaultPlan::new()),
-            |r| seen.push(r.frame),
+            |r: &FrameRecord| seen.push(r.frame),
         )
         .expect("starts");
         assert_eq!(summary.stop_reason, StopReason::Duration);
@@ -444,7 +473,7 @@ mod tests {
             &SHIPPED,
             &mut tasks,
             options(&stop, 3600, FaultPlan::new()),
-            |_| frames += 1,
+            |_: &FrameRecord| frames += 1,
         )
         .expect("starts");
         assert_eq!(summary.stop_reason, StopReason::Requested);
@@ -470,7 +499,7 @@ mod tests {
             &SHIPPED,
             &mut tasks,
             options(&stop, 5, plan),
-            |_| {},
+            |_: &FrameRecord| {},
         )
         .expect("starts");
         // gps (budget 500 us, policy reset) runs every 10th frame: 50 releases in 5 s, each

@@ -1,14 +1,28 @@
 //! The executive's per-frame timing records, as a log stream in their own format (read back
 //! by `skyframe-log` and the frame-overrun report tool).
 
+use crate::host::{TimerCheck, TimingSink};
 use crate::logwriter::LogStream;
 use skyframe_core::executive::FrameRecord;
 use skyframe_core::logfmt::frame_log::{FrameLogFormat, encode_frame_record};
-use skyframe_core::logfmt::record::{MAX_RECORD_LEN, encode_begin_data, encode_end_data};
+use skyframe_core::logfmt::record::{
+    DataBlockWriter, LogFormat, MAX_RECORD_LEN, encode_begin_data, encode_end_data,
+};
 use skyframe_core::schedule::FrameTable;
 
 /// Format index of the timing records in the executive's log file.
 pub const TIMING_FORMAT_INDEX: u8 = 1;
+
+/// Format index of the start-up timer check (one record, before the first frame's).
+pub const TIMER_CHECK_FORMAT_INDEX: u8 = 2;
+
+/// The start-up timer check: how late `samples` wake-ups of period `period_us` were, against
+/// the frame margin; `over_margin` 1 when the worst ate the whole margin.
+pub const TIMER_CHECK_LOG: LogFormat = LogFormat::new(
+    "%u,%u,%.1f,%.1f,%.1f,%.1f,%.1f,%.1f,%hhu",
+    "period_us,samples,wakeup_latency_mean_us,wakeup_latency_p50_us,wakeup_latency_p99_us,\
+     wakeup_latency_p999_us,wakeup_latency_max_us,margin_us,over_margin",
+);
 
 pub struct TimingLog {
     stream: LogStream,
@@ -68,10 +82,48 @@ impl TimingLog {
         }
     }
 
+    /// Logs the start-up timer check, stamped with the time the first frame is due.
+    pub fn timer_check(&mut self, check: &TimerCheck) {
+        let Ok(format) = TIMER_CHECK_LOG.parse() else {
+            return;
+        };
+        let Ok(n) = TIMER_CHECK_LOG.encode_declaration(&mut self.buf, TIMER_CHECK_FORMAT_INDEX)
+        else {
+            return;
+        };
+        self.push(n);
+        let latency = &check.wakeup_latency_us;
+        let t_ns = self.time_origin_ns + self.last_t_ns;
+        let written = DataBlockWriter::new(&mut self.buf, TIMER_CHECK_FORMAT_INDEX, t_ns, &format)
+            .u32(u32::try_from(check.period_us).unwrap_or(u32::MAX))
+            .u32(u32::try_from(latency.count).unwrap_or(u32::MAX))
+            .f32(latency.mean as f32)
+            .f32(latency.p50 as f32)
+            .f32(latency.p99 as f32)
+            .f32(latency.p999 as f32)
+            .f32(latency.max as f32)
+            .f32(check.margin_us as f32)
+            .u8(u8::from(check.over_margin))
+            .finish();
+        if let Ok(n) = written {
+            self.push(n);
+        }
+    }
+
     /// Ends the data (End Data at the last frame's time).
     pub fn finish(mut self) {
         if let Ok(n) = encode_end_data(&mut self.buf, self.time_origin_ns + self.last_t_ns) {
             self.push(n);
         }
+    }
+}
+
+impl TimingSink for &mut TimingLog {
+    fn frame(&mut self, record: &FrameRecord) {
+        self.record(record);
+    }
+
+    fn timer_check(&mut self, check: &TimerCheck) {
+        TimingLog::timer_check(self, check);
     }
 }
