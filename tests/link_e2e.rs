@@ -213,3 +213,67 @@ fn a_key_others_can_read_is_refused_in_one_line() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("readable by group or others"), "{err}");
 }
+
+#[test]
+fn a_burst_of_overruns_reaches_the_ground_at_once_and_throttled() {
+    let dir = scratch("link-overruns");
+    write_key(&dir.join("link.key"), 0x5c);
+    let socket = UdpSocket::bind("127.0.0.1:0").expect("ground socket");
+    socket
+        .set_read_timeout(Some(Duration::from_millis(50)))
+        .expect("timeout");
+    let telemetry = socket.local_addr().expect("addr");
+    // The IMU (budget 300 us, policy reset) overruns in every release of frames 300..600:
+    // 300 overruns from 3 s to 6 s of the executive's clock.
+    let child = skyframe()
+        .args(["sim", "--duration", "9", "--priority", "0", "--no-mlockall"])
+        .args(["--inject-overrun", "imu:1000@300..600"])
+        .args([
+            "--commands",
+            "127.0.0.1:0",
+            "--telemetry",
+            &telemetry.to_string(),
+            "--key",
+        ])
+        .arg(dir.join("link.key"))
+        .arg("--log-dir")
+        .arg(dir.join("flights"))
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("skyframe sim");
+
+    // Every IMU status, by the vehicle's clock (s), with its budget overruns.
+    let mut imu = Vec::new();
+    let mut buf = [0u8; 2048];
+    let start = Instant::now();
+    while start.elapsed() < Duration::from_secs(20) {
+        let Ok((n, _)) = socket.recv_from(&mut buf) else {
+            continue;
+        };
+        if let Ok((header, Message::Telemetry(t))) = decode_datagram(&buf[..n], Verify::No) {
+            match t {
+                Telemetry::TaskStatus(s) if s.task_index == 0 => {
+                    imu.push((header.envelope.t_ns as f64 * 1e-9, s.overruns_budget));
+                }
+                Telemetry::ExecutiveStatus(e) if e.elapsed_ns >= 8_900_000_000 => break,
+                _ => {}
+            }
+        }
+    }
+    let output = child.wait_with_output().expect("exits");
+    assert!(output.status.success());
+
+    // The first report after the burst began came within a second and counted overruns.
+    let first = imu.iter().find(|(t, _)| *t >= 3.0).copied();
+    assert!(
+        first.is_some_and(|(t, overruns)| t < 4.0 && overruns > 0),
+        "{imu:?}"
+    );
+    // Throttled: about one status a second while 300 overruns happened, not one each.
+    let in_burst = imu.iter().filter(|(t, _)| (3.0..7.0).contains(t)).count();
+    assert!((2..=6).contains(&in_burst), "{in_burst} statuses: {imu:?}");
+    // The summary after the burst has them all.
+    let last = imu.last().map_or(0, |(_, o)| *o);
+    assert!(last >= 295, "{imu:?}");
+}

@@ -5,6 +5,11 @@
 //! acknowledges), then sends what the [`TelemetrySchedule`] says is due: the executive's
 //! status, one task's status in rotation, and each task's data at its own rate.
 //!
+//! Timing faults do not wait for the rotation: a task whose overrun or skip counts grew goes
+//! out as a status (its counts by kind are the summary) at once, then at most once per
+//! [`OVERRUN_REPORT_INTERVAL_NS`] while a burst lasts, so a burst of slips never floods the
+//! link and the ground still sees it within a second.
+//!
 //! A task's data is its latest log record: each task's log sink is wrapped in a
 //! [`TappedSink`], which passes every record on to the log and keeps the latest data block
 //! (and the formats) for telemetry. So telemetry shows exactly what is logged, with the
@@ -23,6 +28,7 @@ use crate::link::telemetry::{Due, TelemetrySchedule, VehicleEnvelopes};
 use crate::logfmt::format::Format;
 use crate::logfmt::printf;
 use crate::schedule::FrameTable;
+use crate::schedule::analysis::MAX_TASKS;
 use crate::tasks::health::WatchdogReport;
 use core::cell::{Cell, RefCell};
 use core::sync::atomic::{AtomicBool, Ordering};
@@ -199,6 +205,15 @@ pub struct TelemetryConfig {
 /// Datagrams handled per release at most: a flood cannot eat the frame.
 const MAX_COMMANDS_PER_STEP: usize = 8;
 const MAX_SENDS_PER_STEP: usize = 16;
+/// The shortest time between two overrun-prompted statuses of one task.
+pub const OVERRUN_REPORT_INTERVAL_NS: u64 = 1_000_000_000;
+
+/// What the ground was last told of one task's timing faults.
+#[derive(Clone, Copy, Default)]
+struct OverrunReport {
+    faults: u64,
+    sent_ns: Option<u64>,
+}
 
 pub struct TelemetryTask<'a, P> {
     port: P,
@@ -211,6 +226,7 @@ pub struct TelemetryTask<'a, P> {
     envelopes: VehicleEnvelopes,
     mode: Option<FlightMode>,
     announced: bool,
+    overrun_reports: [OverrunReport; MAX_TASKS],
     buf: [u8; MAX_DATAGRAM_LEN],
 }
 
@@ -241,6 +257,7 @@ impl<'a, P: DatagramPort> TelemetryTask<'a, P> {
             schedule: None,
             mode: None,
             announced: false,
+            overrun_reports: [OverrunReport::default(); MAX_TASKS],
             buf: [0; MAX_DATAGRAM_LEN],
         }
     }
@@ -408,6 +425,39 @@ impl<'a, P: DatagramPort> TelemetryTask<'a, P> {
         Some(status)
     }
 
+    /// A status for each task whose timing faults grew since the ground last heard, throttled
+    /// per task.
+    fn report_overruns(&mut self, cx: &TaskContext<'_>) {
+        let now = cx.now_ns;
+        for index in 0..self.table.tasks.len().min(MAX_TASKS) {
+            let Some(health) = cx.health.task(index) else {
+                break;
+            };
+            let faults = u64::from(health.overruns.budget)
+                + u64::from(health.overruns.frame)
+                + u64::from(health.overruns.missed)
+                + u64::from(health.skipped);
+            let Some(report) = self.overrun_reports.get(index).copied() else {
+                break;
+            };
+            let quiet = report
+                .sent_ns
+                .is_none_or(|t| now.saturating_sub(t) >= OVERRUN_REPORT_INTERVAL_NS);
+            if faults == report.faults || !quiet {
+                continue;
+            }
+            if let Some(status) = self.task_status(cx, index as u8) {
+                self.send(now, Telemetry::TaskStatus(status), false);
+            }
+            if let Some(r) = self.overrun_reports.get_mut(index) {
+                *r = OverrunReport {
+                    faults,
+                    sent_ns: Some(now),
+                };
+            }
+        }
+    }
+
     fn send_due(&mut self, cx: &TaskContext<'_>) {
         let now = cx.now_ns;
         for _ in 0..MAX_SENDS_PER_STEP {
@@ -491,6 +541,7 @@ impl<P: DatagramPort> Task for TelemetryTask<'_, P> {
             }
         }
         self.receive_commands(cx);
+        self.report_overruns(cx);
         self.send_due(cx);
         Ok(())
     }
