@@ -19,7 +19,10 @@ fn main() {
     println!("cargo::rerun-if-env-changed=SKYFRAME_SCHEDULE");
     let path = match std::env::var_os("SKYFRAME_SCHEDULE") {
         Some(p) => PathBuf::from(p),
-        None => PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../schedule.toml"),
+        // Read at run time, not baked in with `env!`: a build script compiled in one checkout
+        // can be reused (same hash) by another sharing the target directory.
+        None => PathBuf::from(std::env::var_os("CARGO_MANIFEST_DIR").unwrap_or_default())
+            .join("../schedule.toml"),
     };
     println!("cargo::rerun-if-changed={}", path.display());
 
