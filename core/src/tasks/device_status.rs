@@ -4,7 +4,7 @@
 
 use super::task_log::TaskLog;
 use crate::comm::RecordSink;
-use crate::devices::DecoderStats;
+use crate::devices::{Decoder, DecoderStats};
 use crate::executive::TaskContext;
 use crate::logfmt::format::Format;
 use crate::logfmt::record::{EncodeError, LogFormat};
@@ -46,8 +46,35 @@ impl DeviceStatusLog {
         Ok(())
     }
 
+    /// The end of every step: the task is degraded while its device is stale, and the
+    /// counters go into the log once a second.
+    pub fn after_step<S: RecordSink, D: Decoder>(
+        &mut self,
+        log: &mut TaskLog<S>,
+        cx: &TaskContext<'_>,
+        decoder: &D,
+    ) {
+        let stale = decoder.is_stale(cx.now_ns);
+        cx.health
+            .set_degraded(cx.task, stale.then_some(DEVICE_STALE));
+        self.maybe_log(log, cx, decoder.stats(), stale, false);
+    }
+
+    /// Closes a logging section (recover, shutdown): the counters as they stand, then End
+    /// Data. The decoder keeps its counters; `init` opens the next section.
+    pub fn close<S: RecordSink, D: Decoder>(
+        &mut self,
+        log: &mut TaskLog<S>,
+        cx: &TaskContext<'_>,
+        decoder: &D,
+    ) {
+        let stale = decoder.is_stale(cx.now_ns);
+        self.maybe_log(log, cx, decoder.stats(), stale, true);
+        log.end(cx);
+    }
+
     /// Logs the counters when a second has passed since the last record (or `force`).
-    pub fn maybe_log<S: RecordSink>(
+    fn maybe_log<S: RecordSink>(
         &mut self,
         log: &mut TaskLog<S>,
         cx: &TaskContext<'_>,

@@ -2,12 +2,12 @@
 //! estimator, logs it (`docs/log-streams.md`, `gps.bin`). A value the receiver did not give
 //! is logged as NaN (or the integer field's "unknown" value) so columns never shift.
 
-use super::device_status::{DEVICE_STALE, DeviceStatusLog};
+use super::device_status::DeviceStatusLog;
 use super::task_log::TaskLog;
 use crate::comm::{LatestSlot, RecordSink};
+use crate::devices::DecoderStats;
 use crate::devices::gps::{GpsConfig, GpsFix, NmeaDecoder};
 use crate::devices::port::drain;
-use crate::devices::{Decoder, DecoderStats};
 use crate::executive::{Task, TaskContext, TaskFault};
 use crate::logfmt::format::Format;
 use crate::logfmt::record::LogFormat;
@@ -110,21 +110,14 @@ impl<P: Read + ReadReady, S: RecordSink> Task for GpsTask<'_, P, S> {
                 });
             },
         );
-        let stale = self.decoder.is_stale(cx.now_ns);
-        cx.health
-            .set_degraded(cx.task, stale.then_some(DEVICE_STALE));
-        self.status
-            .maybe_log(&mut self.log, cx, self.decoder.stats(), stale, false);
+        self.status.after_step(&mut self.log, cx, &self.decoder);
         drained
             .map(|_| ())
             .map_err(|_| TaskFault::new("gps port error"))
     }
 
     fn recover(&mut self, cx: &mut TaskContext<'_>) {
-        let stale = self.decoder.is_stale(cx.now_ns);
-        self.status
-            .maybe_log(&mut self.log, cx, self.decoder.stats(), stale, true);
-        self.log.end(cx);
+        self.status.close(&mut self.log, cx, &self.decoder);
     }
 
     fn shutdown(&mut self, cx: &mut TaskContext<'_>) {

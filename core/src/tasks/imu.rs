@@ -1,7 +1,7 @@
 //! The IMU task: drains the IMU's bytes, publishes each sample for the estimator, logs fast
 //! frames and slow records (`docs/log-streams.md`, `imu.bin`).
 
-use super::device_status::{DEVICE_STALE, DeviceStatusLog};
+use super::device_status::DeviceStatusLog;
 use super::task_log::TaskLog;
 use crate::comm::{LatestSlot, RecordSink};
 use crate::devices::imu::{ImuDecoder, ImuFrame, ImuSample};
@@ -126,11 +126,7 @@ impl<P: Read + ReadReady, S: RecordSink> Task for ImuTask<'_, P, S> {
                 }
             },
         );
-        let stale = self.decoder.is_stale(cx.now_ns);
-        cx.health
-            .set_degraded(cx.task, stale.then_some(DEVICE_STALE));
-        self.status
-            .maybe_log(&mut self.log, cx, self.decoder.stats(), stale, false);
+        self.status.after_step(&mut self.log, cx, &self.decoder);
         drained
             .map(|_| ())
             .map_err(|_| TaskFault::new("imu port error"))
@@ -139,16 +135,10 @@ impl<P: Read + ReadReady, S: RecordSink> Task for ImuTask<'_, P, S> {
     /// The decoder resynchronises by itself and its counters must survive a reset, so
     /// recovering only closes this logging section; `init` opens the next.
     fn recover(&mut self, cx: &mut TaskContext<'_>) {
-        let stale = self.decoder.is_stale(cx.now_ns);
-        self.status
-            .maybe_log(&mut self.log, cx, self.decoder.stats(), stale, true);
-        self.log.end(cx);
+        self.status.close(&mut self.log, cx, &self.decoder);
     }
 
     fn shutdown(&mut self, cx: &mut TaskContext<'_>) {
-        let stale = self.decoder.is_stale(cx.now_ns);
-        self.status
-            .maybe_log(&mut self.log, cx, self.decoder.stats(), stale, true);
-        self.log.end(cx);
+        self.status.close(&mut self.log, cx, &self.decoder);
     }
 }

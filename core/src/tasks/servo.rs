@@ -6,15 +6,15 @@
 //! `autopilot_ready` clear: the board keeps the pilot in control and knows the computer is
 //! alive.
 
-use super::device_status::{DEVICE_STALE, DeviceStatusLog};
+use super::device_status::DeviceStatusLog;
 use super::task_log::TaskLog;
 use crate::comm::{LatestSlot, RecordSink, SlotReader};
+use crate::devices::DecoderStats;
 use crate::devices::port::{CommandWriter, drain};
 use crate::devices::servo::{
     ChannelCommand, ControlMode, PILOT_CHANNELS, PilotFrame, PilotReport, ServoCommand,
     ServoDecoder, pulse_us_to_surface, pulse_us_to_throttle,
 };
-use crate::devices::{Decoder, DecoderStats};
 use crate::executive::{Task, TaskContext, TaskFault};
 use crate::logfmt::format::Format;
 use crate::logfmt::record::LogFormat;
@@ -232,21 +232,14 @@ where
                 });
             },
         );
-        let stale = self.decoder.is_stale(cx.now_ns);
-        cx.health
-            .set_degraded(cx.task, stale.then_some(DEVICE_STALE));
-        self.status
-            .maybe_log(&mut self.log, cx, self.decoder.stats(), stale, false);
+        self.status.after_step(&mut self.log, cx, &self.decoder);
         drained
             .map(|_| ())
             .map_err(|_| TaskFault::new("servo port error"))
     }
 
     fn recover(&mut self, cx: &mut TaskContext<'_>) {
-        let stale = self.decoder.is_stale(cx.now_ns);
-        self.status
-            .maybe_log(&mut self.log, cx, self.decoder.stats(), stale, true);
-        self.log.end(cx);
+        self.status.close(&mut self.log, cx, &self.decoder);
     }
 
     fn shutdown(&mut self, cx: &mut TaskContext<'_>) {
