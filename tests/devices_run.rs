@@ -13,10 +13,9 @@ use skyframe_core::devices::imu::{
 use skyframe_core::devices::servo::{
     BoardStatus, PILOT_FRAME_LEN, PilotReport, ServoCommandDecoder, encode_pilot_frame,
 };
-use skyframe_tests::{binary, scratch, skyframe};
+use skyframe_tests::{scratch, skyframe, to_csv};
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
-use std::process::Command;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
@@ -325,20 +324,13 @@ fn run_flies_three_pty_devices_through_unplug_and_silence() {
 
     // The logs: the IMU's fast frames and the servo's pilot report, as a researcher reads them.
     let flight = PathBuf::from(report["flight_dir"].as_str().expect("flight dir"));
-    let csv = dir.join("csv");
-    let convert = Command::new(binary("skyframe-log", "skyframe-log"))
-        .arg("to-csv")
-        .arg(flight.join("imu.bin"))
-        .arg(flight.join("servo.bin"))
-        .arg(flight.join("gps.bin"))
-        .arg("--out-dir")
-        .arg(&csv)
-        .output()
-        .expect("converter");
-    assert!(
-        convert.status.success(),
-        "{}",
-        String::from_utf8_lossy(&convert.stderr)
+    let csv = to_csv(
+        &[
+            flight.join("imu.bin"),
+            flight.join("servo.bin"),
+            flight.join("gps.bin"),
+        ],
+        &dir.join("csv"),
     );
     let imu_csv = std::fs::read_to_string(csv.join("imu.1.csv")).expect("imu csv");
     let rows: Vec<&str> = imu_csv.lines().filter(|l| !l.starts_with('%')).collect();

@@ -128,17 +128,8 @@ fn timing_rows(
         })
         .expect("executive log")
         .to_string();
-    let out_dir = std::path::Path::new(&log).with_file_name("csv");
-    let run = Command::new(skyframe_tests::binary("skyframe-log", "skyframe-log"))
-        .args(["to-csv", &log, "--out-dir"])
-        .arg(&out_dir)
-        .output()
-        .expect("skyframe-log runs");
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
+    let out_dir =
+        skyframe_tests::to_csv(&[&log], &std::path::Path::new(&log).with_file_name("csv"));
     let csv = std::fs::read_to_string(out_dir.join("executive.1.csv")).expect("csv");
     let columns: Vec<String> = csv
         .lines()
@@ -552,20 +543,10 @@ fn a_run_logs_its_timing_records_readably_for_skyframe_log() {
     assert!(text.contains("exec_ns_imu"), "{text}");
 
     // The start-up timer check is in the log with the figures the summary gives.
-    let csv = dir.join("csv");
-    let convert = Command::new(skyframe_tests::binary("skyframe-log", "skyframe-log"))
-        .args(["to-csv", *file, "--out-dir"])
-        .arg(&csv)
-        .output()
-        .expect("skyframe-log runs");
-    assert!(convert.status.success());
-    let text = std::fs::read_to_string(csv.join("executive.2.csv")).expect("timer check CSV");
+    let csv = skyframe_tests::to_csv(&[*file], &dir.join("csv")).join("executive.2.csv");
+    let text = std::fs::read_to_string(&csv).expect("timer check CSV");
     assert!(text.contains("% time,period_us,samples,"), "{text}");
-    let row: Vec<f64> = text
-        .lines()
-        .filter(|l| !l.starts_with('%'))
-        .flat_map(|l| l.split(',').map(|v| v.parse().unwrap_or(f64::NAN)))
-        .collect();
+    let row: Vec<f64> = skyframe_tests::csv_rows(&csv).concat();
     let check = &s["timer_check"];
     let latency = &check["wakeup_latency_us"];
     let close = |logged: f64, reported: &Value| {

@@ -3,7 +3,7 @@
 //! wrong key does nothing, the right key ends the run cleanly with the logs closed.
 
 use serde_json::Value;
-use skyframe_tests::{binary, scratch, skyframe};
+use skyframe_tests::{binary, scratch, skyframe, to_csv};
 use std::net::UdpSocket;
 use std::os::unix::fs::PermissionsExt;
 use std::path::Path;
@@ -142,18 +142,8 @@ fn ground_and_vehicle_find_each_other_and_the_key_decides_who_stops_the_run() {
         "{}",
         report["link"]
     );
-    let converted = Command::new(binary("skyframe-log", "skyframe-log"))
-        .args([
-            "to-csv",
-            report["flight_dir"].as_str().expect("dir"),
-            "--out-dir",
-        ])
-        .arg(dir.join("csv"))
-        .output()
-        .expect("converter");
-    assert!(
-        converted.status.success(),
-        "logs closed cleanly: {}",
-        String::from_utf8_lossy(&converted.stderr)
+    to_csv(
+        &[report["flight_dir"].as_str().expect("dir")],
+        &dir.join("csv"),
     );
 }

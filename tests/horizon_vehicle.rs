@@ -4,7 +4,7 @@
 //! solution — these frames are synthetic and not of this flight).
 
 use serde_json::Value;
-use skyframe_tests::{binary, scratch, skyframe};
+use skyframe_tests::{binary, scratch, skyframe, to_csv};
 use std::net::UdpSocket;
 use std::os::unix::fs::PermissionsExt;
 use std::process::{Command, Stdio};
@@ -93,17 +93,7 @@ fn horizon_results_reach_the_estimator_with_their_capture_time() {
 
     // The estimator's health records count each horizon it took up.
     let flight = report["flight_dir"].as_str().expect("dir");
-    let csv = dir.join("csv");
-    let conv = Command::new(binary("skyframe-log", "skyframe-log"))
-        .args(["to-csv", flight, "--out-dir"])
-        .arg(&csv)
-        .output()
-        .expect("converter");
-    assert!(
-        conv.status.success(),
-        "{}",
-        String::from_utf8_lossy(&conv.stderr)
-    );
+    let csv = to_csv(&[flight], &dir.join("csv"));
     let health = std::fs::read_to_string(csv.join("estimator.2.csv")).expect("estimator health");
     let columns: Vec<&str> = health
         .lines()

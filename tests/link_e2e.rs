@@ -5,10 +5,10 @@ use serde_json::Value;
 use skyframe_core::link::auth::LinkKey;
 use skyframe_core::link::frame::{Envelope, Verify, decode_datagram, encode_datagram};
 use skyframe_core::link::messages::{AckResult, Command, Message, Telemetry};
-use skyframe_tests::{binary, scratch, skyframe};
+use skyframe_tests::{scratch, skyframe, to_csv};
 use std::net::{SocketAddr, UdpSocket};
 use std::os::unix::fs::PermissionsExt;
-use std::process::{Command as Process, Stdio};
+use std::process::Stdio;
 use std::time::{Duration, Instant};
 
 struct Ground {
@@ -175,17 +175,7 @@ fn telemetry_commands_rates_and_a_clean_authenticated_stop() {
     assert_eq!(link["commands_accepted"], 2, "{link}");
     assert_eq!(link["commands_rejected"], 1, "the forged stop: {link}");
     let flight = report["flight_dir"].as_str().expect("dir");
-    let convert = Process::new(binary("skyframe-log", "skyframe-log"))
-        .args(["to-csv", flight, "--out-dir"])
-        .arg(dir.join("csv"))
-        .output()
-        .expect("converter");
-    let info = String::from_utf8_lossy(&convert.stdout);
-    assert!(
-        convert.status.success(),
-        "every log closed cleanly:\n{info}{}",
-        String::from_utf8_lossy(&convert.stderr)
-    );
+    to_csv(&[flight], &dir.join("csv"));
 }
 
 #[test]

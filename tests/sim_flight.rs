@@ -2,9 +2,8 @@
 //! speaking the hardware protocols through the same decoders.
 
 use serde_json::Value;
-use skyframe_tests::{binary, scratch, skyframe};
+use skyframe_tests::{csv_rows, scratch, skyframe, to_csv};
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 fn sim_fast(dir: &Path, seconds: &str, seed: &str) -> Value {
     sim_fast_with(dir, &["--duration", seconds, "--seed", seed])
@@ -127,8 +126,8 @@ fn the_simulated_devices_decode_cleanly_and_the_airplane_flies() {
     // Truth: the default scenario's pilot waited 14 s for the alignment, took off and is
     // climbing out.
     let flight = PathBuf::from(report["flight_dir"].as_str().expect("dir"));
-    let out = convert(&flight, &dir.join("csv"));
-    let truth = rows(&out.join("truth.1.csv"));
+    let out = to_csv(&[&flight], &dir.join("csv"));
+    let truth = csv_rows(&out.join("truth.1.csv"));
     let last = truth.last().expect("rows");
     let (north, altitude, airspeed, on_ground) = (last[1], -last[3], last[13], last[19]);
     assert!(north.abs() > 300.0, "flew away from the start: {north}");
@@ -155,37 +154,6 @@ fn the_simulated_devices_decode_cleanly_and_the_airplane_flies() {
     );
 }
 
-/// `skyframe-log to-csv` of a flight directory; every log must be whole (exit 0).
-fn convert(flight: &Path, out: &Path) -> PathBuf {
-    let run = Command::new(binary("skyframe-log", "skyframe-log"))
-        .arg("to-csv")
-        .arg(flight)
-        .arg("--out-dir")
-        .arg(out)
-        .output()
-        .expect("converter");
-    assert!(
-        run.status.success(),
-        "every log whole: {}",
-        String::from_utf8_lossy(&run.stderr)
-    );
-    out.to_path_buf()
-}
-
-/// The data rows of a CSV as numbers (NaN for anything else), time first.
-fn rows(csv: &Path) -> Vec<Vec<f64>> {
-    std::fs::read_to_string(csv)
-        .unwrap_or_else(|e| panic!("{}: {e}", csv.display()))
-        .lines()
-        .filter(|l| !l.starts_with('%'))
-        .map(|l| {
-            l.split(',')
-                .map(|v| v.parse().unwrap_or(f64::NAN))
-                .collect()
-        })
-        .collect()
-}
-
 #[test]
 fn the_default_scenario_takes_off_flies_its_aerobatics_and_lands() {
     let dir = scratch("sim-default");
@@ -193,7 +161,7 @@ fn the_default_scenario_takes_off_flies_its_aerobatics_and_lands() {
     assert_eq!(report["stop_reason"], "duration");
     assert!((report["elapsed_s"].as_f64().unwrap_or(0.0) - 315.0).abs() < 0.1);
     let flight = PathBuf::from(report["flight_dir"].as_str().expect("dir"));
-    let truth = rows(&convert(&flight, &dir.join("csv")).join("truth.1.csv"));
+    let truth = csv_rows(&to_csv(&[&flight], &dir.join("csv")).join("truth.1.csv"));
     let airborne: Vec<&Vec<f64>> = truth.iter().filter(|r| r[19] == 0.0).collect();
     let first = airborne.first().map_or(f64::NAN, |r| r[0]);
     let last = airborne.last().map_or(f64::NAN, |r| r[0]);
@@ -220,7 +188,7 @@ fn the_default_scenario_takes_off_flies_its_aerobatics_and_lands() {
     // air; with the switch at AUTO (139-179 s) the flight computer held the pilot's attitude
     // (Stabilise: no mission is loaded) and handed back at once.
     let csv = dir.join("csv");
-    let health = rows(&csv.join("estimator.2.csv"));
+    let health = csv_rows(&csv.join("estimator.2.csv"));
     let in_air: Vec<&Vec<f64>> = health
         .iter()
         .filter(|r| (30.0..270.0).contains(&r[0]))
@@ -229,7 +197,7 @@ fn the_default_scenario_takes_off_flies_its_aerobatics_and_lands() {
         !in_air.is_empty() && in_air.iter().all(|r| r[4] == 1.0),
         "estimator healthy in flight"
     );
-    let control = rows(&csv.join("control.1.csv"));
+    let control = csv_rows(&csv.join("control.1.csv"));
     let auto_rows = control.iter().filter(|r| r[1] != 0.0).count();
     assert!(
         (1900..=2100).contains(&auto_rows),
@@ -258,9 +226,9 @@ fn a_mission_is_flown_in_auto_then_loitered_and_the_pilot_lands() {
     );
     assert_eq!(report["stop_reason"], "duration");
     let flight = PathBuf::from(report["flight_dir"].as_str().expect("dir"));
-    let csv = convert(&flight, &dir.join("csv"));
-    let control = rows(&csv.join("control.1.csv"));
-    let truth = rows(&csv.join("truth.1.csv"));
+    let csv = to_csv(&[&flight], &dir.join("csv"));
+    let control = csv_rows(&csv.join("control.1.csv"));
+    let truth = csv_rows(&csv.join("truth.1.csv"));
 
     // The pilot's switch at AUTO (50-240 s) hands over to the mission, not Stabilise.
     let auto: Vec<&Vec<f64>> = control.iter().filter(|r| r[1] == 2.0).collect();
@@ -364,9 +332,9 @@ fn the_faults_scenario_shows_each_fault_in_health_and_logs() {
     );
 
     let flight = PathBuf::from(report["flight_dir"].as_str().expect("dir"));
-    let out = convert(&flight, &dir.join("csv"));
+    let out = to_csv(&[&flight], &dir.join("csv"));
     // GPS loss (10 s at 55 s): invalid fixes logged in that window.
-    let gps = rows(&out.join("gps.1.csv"));
+    let gps = csv_rows(&out.join("gps.1.csv"));
     let t0 = gps.first().map_or(0.0, |r| r[0]);
     let lost = gps
         .iter()
@@ -374,12 +342,12 @@ fn the_faults_scenario_shows_each_fault_in_health_and_logs() {
         .count();
     assert!(lost >= 40, "{lost} invalid fixes during the GPS loss");
     // The health log shows the devices degraded while silent.
-    let health = rows(&out.join("health.1.csv"));
+    let health = csv_rows(&out.join("health.1.csv"));
     let degraded = |index: f64| health.iter().any(|r| r[1] == index && r[16] == 1.0);
     assert!(degraded(0.0), "imu degraded in health.bin");
     assert!(degraded(6.0), "gps degraded in health.bin");
     // The device status records show the stale flag at the time.
-    let imu_status = rows(&out.join("imu.3.csv"));
+    let imu_status = csv_rows(&out.join("imu.3.csv"));
     assert!(
         imu_status.iter().any(|r| r[10] == 1.0),
         "imu status records stale"

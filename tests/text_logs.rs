@@ -7,8 +7,7 @@ use skyframe_core::logfmt::record::{
     LogFormat, encode_begin_data, encode_byte_array, encode_data_block, encode_end_data,
 };
 use skyframe_shell::logwriter::{LogWriter, StreamMode, WriterConfig};
-use skyframe_tests::{binary, scratch};
-use std::process::Command;
+use skyframe_tests::{scratch, to_csv};
 
 #[test]
 fn text_log_equals_the_conversion_of_the_binary_log() {
@@ -86,19 +85,7 @@ fn text_log_equals_the_conversion_of_the_binary_log() {
     }
     handle.finish();
 
-    let converted = dir.join("converted");
-    let run = Command::new(binary("skyframe-log", "skyframe-log"))
-        .arg("to-csv")
-        .arg(dir.join("flight/twin_bin.bin"))
-        .arg("--out-dir")
-        .arg(&converted)
-        .output()
-        .expect("converter runs");
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
+    let converted = to_csv(&[dir.join("flight/twin_bin.bin")], &dir.join("converted"));
     for index in [1, 2] {
         let from_binary =
             std::fs::read(converted.join(format!("twin_bin.{index}.csv"))).expect("converted csv");

@@ -62,3 +62,36 @@ pub fn scratch(test: &str) -> PathBuf {
 pub fn cargo_command() -> Command {
     Command::new(cargo())
 }
+
+/// `skyframe-log to-csv INPUTS… --out-dir OUT`, which must succeed (every log whole and
+/// closed cleanly); returns `out`.
+pub fn to_csv<P: AsRef<std::ffi::OsStr>>(inputs: &[P], out: &Path) -> PathBuf {
+    let run = Command::new(binary("skyframe-log", "skyframe-log"))
+        .arg("to-csv")
+        .args(inputs)
+        .arg("--out-dir")
+        .arg(out)
+        .output()
+        .expect("skyframe-log runs");
+    assert!(
+        run.status.success(),
+        "every log whole: {}{}",
+        String::from_utf8_lossy(&run.stdout),
+        String::from_utf8_lossy(&run.stderr)
+    );
+    out.to_path_buf()
+}
+
+/// The data rows of a converted CSV as numbers (NaN for anything else), time first.
+pub fn csv_rows(csv: &Path) -> Vec<Vec<f64>> {
+    std::fs::read_to_string(csv)
+        .unwrap_or_else(|e| panic!("{}: {e}", csv.display()))
+        .lines()
+        .filter(|l| !l.starts_with('%'))
+        .map(|l| {
+            l.split(',')
+                .map(|v| v.parse().unwrap_or(f64::NAN))
+                .collect()
+        })
+        .collect()
+}
