@@ -5,7 +5,7 @@
 
 use crate::bench;
 use crate::check_schedule::check_file;
-use crate::flight::{Devices, FlightPlan, LinkPlan, LogSettings, fly, render_flight};
+use crate::flight::{Devices, FlightPlan, FlightReport, LinkPlan, LogSettings, fly, render_flight};
 use crate::host::{RunOptions, TimerCheckConfig, stop_on_signals};
 use crate::platform::{Platform, RtConfig};
 use crate::simflight::VirtualTime;
@@ -15,7 +15,7 @@ use skyframe_core::executive::{FaultPlan, OverrunInjection};
 use skyframe_core::schedule::{FrameTable, SHIPPED};
 use skyframe_sim::scenario::{FaultKind, Scenario};
 use skyframe_sim::world::SimWorld;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
@@ -186,6 +186,14 @@ pub struct SimArgs {
     /// the scenario's.
     #[arg(long)]
     pub seed: Option<u64>,
+    /// After the flight, score it against the simulator's ground truth: attitude, position
+    /// and velocity errors, altitude and heading hold in AUTO, the estimator's step time, and
+    /// the `ahrs` Python package's filters on the same IMU data (needs python3 with ahrs).
+    #[arg(long)]
+    pub score: bool,
+    /// With --score: leave out the ahrs reference filters.
+    #[arg(long, requires = "score")]
+    pub no_reference_filters: bool,
     #[command(flatten)]
     pub flight: FlightArgs,
 }
@@ -391,13 +399,44 @@ fn run<P: Platform>(platform: &P, command: Command) -> Result<ExitCode, String> 
                 .extend(scenario_overruns(&scenario, SHIPPED.minor_frame_ns));
             let log = crate::vehicle::LogConfig::default();
             let devices = Devices::Sim(Box::new(world));
-            if args.fast {
+            let report = if args.fast {
                 // The timer check measures the OS timer, which virtual time does not use.
                 flight.timer_check_ms = 0;
-                fly_and_report(&VirtualTime, devices, &flight, &log)
+                fly_with(&VirtualTime, devices, &flight, &log)?
             } else {
-                fly_and_report(platform, devices, &flight, &log)
+                fly_with(platform, devices, &flight, &log)?
+            };
+            if !args.score {
+                return print_flight(&report, flight.json);
             }
+            let estimator_budget_ns = SHIPPED
+                .tasks
+                .iter()
+                .find(|t| t.name == "estimator")
+                .map_or(0, |t| t.budget_ns);
+            let score = crate::score::score_flight(&crate::score::ScoreSetup {
+                flight_dir: &report.flight_dir,
+                truth_origin: scenario.plant_config().gps.home,
+                estimator_budget_ns,
+                reference_filters: !args.no_reference_filters,
+            })
+            .map_err(|e| format!("score: {e}"))?;
+            write_score(&report.flight_dir, &score)?;
+            if flight.json {
+                let mut value = serde_json::to_value(&report).map_err(|e| e.to_string())?;
+                if let serde_json::Value::Object(map) = &mut value {
+                    map.insert(
+                        "score".into(),
+                        serde_json::to_value(&score).map_err(|e| e.to_string())?,
+                    );
+                }
+                let text = serde_json::to_string_pretty(&value).map_err(|e| e.to_string())?;
+                println!("{text}");
+            } else {
+                print!("{}", render_flight(&report));
+                print!("{}", crate::score::render_score(&score));
+            }
+            Ok(ExitCode::SUCCESS)
         }
         Command::Idle(args) => {
             let mut flight = args.flight;
@@ -445,9 +484,37 @@ fn fly_and_report<P: Platform>(
     args: &FlightArgs,
     log: &crate::vehicle::LogConfig,
 ) -> Result<ExitCode, String> {
+    let report = fly_with(platform, devices, args, log)?;
+    print_flight(&report, args.json)
+}
+
+fn print_flight(report: &FlightReport, json: bool) -> Result<ExitCode, String> {
+    if json {
+        let json = serde_json::to_string_pretty(report).map_err(|e| e.to_string())?;
+        println!("{json}");
+    } else {
+        print!("{}", render_flight(report));
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `score.json` beside the logs, so a flight keeps its score.
+fn write_score(flight_dir: &Path, score: &crate::score::Score) -> Result<(), String> {
+    let path = flight_dir.join("score.json");
+    let text = serde_json::to_string_pretty(score).map_err(|e| e.to_string())?;
+    std::fs::write(&path, text + "\n").map_err(|e| format!("{}: {e}", path.display()))
+}
+
+/// Flies with `devices` and returns the report.
+fn fly_with<P: Platform>(
+    platform: &P,
+    devices: Devices<'_>,
+    args: &FlightArgs,
+    log: &crate::vehicle::LogConfig,
+) -> Result<FlightReport, String> {
     let faults = fault_plan(&SHIPPED, &args.inject_overrun)?;
     let stop = stop_flag()?;
-    let report = fly(
+    fly(
         platform,
         &SHIPPED,
         FlightPlan {
@@ -474,14 +541,7 @@ fn fly_and_report<P: Platform>(
                 ..RunOptions::new(args.duration.map(Duration::from_secs_f64), &stop)
             },
         },
-    )?;
-    if args.json {
-        let json = serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?;
-        println!("{json}");
-    } else {
-        print!("{}", render_flight(&report));
-    }
-    Ok(ExitCode::SUCCESS)
+    )
 }
 
 #[cfg(test)]

@@ -20,6 +20,7 @@ pub mod logwriter;
 pub mod mission;
 pub mod platform;
 pub mod ring;
+pub mod score;
 pub mod serial;
 pub mod simflight;
 pub mod stats;

@@ -55,7 +55,7 @@ impl Default for AutopilotGains {
             roll: PidGains::new(1.2, 0.1, 0.15, -1.0, 1.0).with_rate_limit(4.0),
             pitch: PidGains::new(2.0, 0.5, 0.3, -1.0, 1.0).with_rate_limit(4.0),
             course: PidGains::new(1.0, 0.02, 0.0, -bank, bank),
-            altitude: PidGains::new(0.02, 0.002, 0.02, -pitch, pitch),
+            altitude: PidGains::new(0.04, 0.004, 0.04, -pitch, pitch),
             airspeed_throttle: PidGains::new(0.08, 0.02, 0.0, -1.0, 1.0),
             airspeed_pitch: PidGains::new(-0.04, -0.005, 0.0, -pitch, pitch),
             yaw_damper: 0.3,

@@ -58,7 +58,7 @@ impl Default for EstimatorConfig {
             alignment: AlignmentConfig::default(),
             heading: HeadingSource::GpsCourse { min_speed_mps: 5.0 },
             heading_sd_rad: 10f32.to_radians(),
-            gps_latency_ns: 100_000_000,
+            gps_latency_ns: 140_000_000,
             home: None,
             gps_default_pos_sd_m: 2.5,
             gps_default_vel_sd_mps: 0.3,

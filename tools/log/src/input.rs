@@ -1,16 +1,15 @@
 //! Feeding files through the core's streaming reader, with a progress bar on a terminal.
 
-use std::fs::File;
-use std::io::{self, IsTerminal, Read};
+use std::io::{self, IsTerminal};
 use std::path::{Path, PathBuf};
 
 use indicatif::{ProgressBar, ProgressStyle};
-use skyframe_core::logfmt::{Event, LogReader, Problem, ProblemKind};
+use skyframe_core::logfmt::{Event, LogReader};
 
 /// The files named on the command line, directories expanded to their files (sorted, not
 /// hidden, not recursive) — the seed's "convert every log here" batch script — less what a
-/// flight directory holds that is not a binary log: CSV (text logs, conversions), the link
-/// key, TOML (vehicle and scenario files). Such a file is still read when named itself.
+/// flight directory holds that is not a binary log: CSV (text logs, conversions), JSON (the
+/// simulator's `score.json`), the link key, TOML (vehicle and scenario files). Such a file is still read when named itself.
 pub fn expand(inputs: &[PathBuf]) -> Result<Vec<PathBuf>, String> {
     let mut files = Vec::new();
     for input in inputs {
@@ -25,7 +24,7 @@ pub fn expand(inputs: &[PathBuf]) -> Result<Vec<PathBuf>, String> {
                 let name = path.file_name().map(|n| n.to_string_lossy().into_owned());
                 let hidden = name.as_deref().is_none_or(|n| n.starts_with('.'));
                 let not_a_log = path.extension().is_some_and(|e| {
-                    ["csv", "key", "toml"]
+                    ["csv", "json", "key", "toml"]
                         .iter()
                         .any(|skip| e.eq_ignore_ascii_case(skip))
                 });
@@ -66,20 +65,7 @@ pub fn report_line(bar: &ProgressBar, line: &str) {
     bar.suspend(|| eprintln!("{line}"));
 }
 
-/// The stderr line of a problem.
-pub fn problem_line(path: &Path, problem: &Problem) -> String {
-    let file = path.display();
-    match problem.kind {
-        ProblemKind::NotClosedCleanly => {
-            format!("{file}: offset {}: {}", problem.offset, problem.kind)
-        }
-        kind if kind.resynchronises() => format!(
-            "{file}: offset {}: {kind}; skipped to offset {}",
-            problem.offset, problem.resume_offset
-        ),
-        kind => format!("{file}: offset {}: {kind}; record skipped", problem.offset),
-    }
-}
+pub use skyframe_logtable::problem_line;
 
 /// Streams `path` through a fresh reader, calling `on_event` for every event in file order.
 /// Memory stays constant: the reader's window is the only buffer.
@@ -87,33 +73,7 @@ pub fn read_file(
     path: &Path,
     reader: &mut LogReader,
     bar: &ProgressBar,
-    mut on_event: impl FnMut(Event<'_>),
+    on_event: impl FnMut(Event<'_>),
 ) -> io::Result<()> {
-    let mut file = File::open(path)?;
-    reader.reset();
-    loop {
-        let space = reader.space();
-        if space.is_empty() {
-            // The window holds the longest record, so a drained reader always has room.
-            return Err(io::Error::other("log reader stalled with a full window"));
-        }
-        let count = loop {
-            match file.read(space) {
-                Ok(n) => break n,
-                Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,
-                Err(e) => return Err(e),
-            }
-        };
-        reader.commit(count);
-        bar.inc(count as u64);
-        if count == 0 {
-            reader.finish();
-        }
-        while let Some(event) = reader.next_event() {
-            on_event(event);
-        }
-        if count == 0 {
-            return Ok(());
-        }
-    }
+    skyframe_logtable::read_file(path, reader, |n| bar.inc(n as u64), on_event)
 }

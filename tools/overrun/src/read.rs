@@ -2,14 +2,11 @@
 //! device logs' samples. Both go through the core's streaming reader, so a damaged file
 //! yields what is readable plus a list of problems.
 
-use std::fs::File;
-use std::io::{self, Read};
+use std::io;
 use std::path::{Path, PathBuf};
 
 use skyframe_core::executive::FrameRecord;
-use skyframe_core::logfmt::{
-    Event, LogReader, Problem, ProblemKind, Record, Time, decode_frame_record, frame_log_task_names,
-};
+use skyframe_core::logfmt::{Event, LogReader, Record, decode_frame_record, frame_log_task_names};
 
 /// A problem found while reading, as one stderr line.
 #[derive(Clone, Debug)]
@@ -18,20 +15,7 @@ pub struct Damage {
     pub line: String,
 }
 
-/// The stderr line of a reader problem (as skyframe-log prints it).
-pub fn problem_line(path: &Path, problem: &Problem) -> String {
-    let file = path.display();
-    match problem.kind {
-        ProblemKind::NotClosedCleanly => {
-            format!("{file}: offset {}: {}", problem.offset, problem.kind)
-        }
-        kind if kind.resynchronises() => format!(
-            "{file}: offset {}: {kind}; skipped to offset {}",
-            problem.offset, problem.resume_offset
-        ),
-        kind => format!("{file}: offset {}: {kind}; record skipped", problem.offset),
-    }
-}
+pub use skyframe_logtable::{feed, problem_line, time_ns};
 
 /// Collects the frame records of one `executive.bin`, event by event (so it also follows a
 /// growing file).
@@ -138,10 +122,6 @@ pub struct TimeCollector {
     pub damage: Vec<Damage>,
 }
 
-pub fn time_ns(time: Time) -> i64 {
-    i64::from(time.sec) * 1_000_000_000 + i64::from(time.nsec)
-}
-
 impl TimeCollector {
     pub fn new(path: &Path, index: u8) -> Self {
         Self {
@@ -171,41 +151,9 @@ impl TimeCollector {
 pub fn read_file(
     path: &Path,
     reader: &mut LogReader,
-    mut on_event: impl FnMut(Event<'_>),
+    on_event: impl FnMut(Event<'_>),
 ) -> io::Result<()> {
-    let mut file = File::open(path)?;
-    reader.reset();
-    loop {
-        let count = feed(&mut file, reader)?;
-        if count == 0 {
-            reader.finish();
-        }
-        while let Some(event) = reader.next_event() {
-            on_event(event);
-        }
-        if count == 0 {
-            return Ok(());
-        }
-    }
-}
-
-/// Reads what `file` has now into the reader's space; returns how many bytes (0 at its end
-/// for now).
-pub fn feed(file: &mut File, reader: &mut LogReader) -> io::Result<usize> {
-    let space = reader.space();
-    if space.is_empty() {
-        // The window holds the longest record, so a drained reader always has room.
-        return Err(io::Error::other("log reader stalled with a full window"));
-    }
-    let count = loop {
-        match file.read(space) {
-            Ok(n) => break n,
-            Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,
-            Err(e) => return Err(e),
-        }
-    };
-    reader.commit(count);
-    Ok(count)
+    skyframe_logtable::read_file(path, reader, |_| {}, on_event)
 }
 
 /// The device logs whose sample periods the report gives: (device, file, format index).

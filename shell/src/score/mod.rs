@@ -1,0 +1,621 @@
+//! `skyframe sim --score`: a simulated flight's estimates and control against the
+//! simulator's ground truth, read back from the flight's own logs.
+//!
+//! ```text
+//! truth.bin ─────┐
+//! estimator.bin ─┼─▶ attitude / position / velocity errors (at each estimate's log TIME)
+//! gps.bin ───────┤   the GPS's own error, the baseline the estimate must beat
+//! control.bin ───┘   altitude and heading hold in AUTO
+//! imu.bin + gps.bin ─▶ replay through the estimator, timed: its step time
+//! imu.bin ─▶ python3 + ahrs (EKF, Madgwick) ─▶ their roll/pitch errors beside ours
+//! ```
+//!
+//! Working from the logs (not from memory inside the run) means the score describes what a
+//! researcher gets on disk, and any flight directory can be scored again.
+
+mod reference;
+mod replay;
+mod truth;
+
+use std::path::Path;
+
+use serde::Serialize;
+use skyframe_core::estimation::geo::{GeoPoint, LocalFrame};
+use skyframe_core::estimation::nalgebra::Vector3;
+use skyframe_logtable::{Stream, Table, load_stream, problem_line};
+use skyframe_sim::plant::GeodeticPosition;
+
+pub use reference::ReferenceFilters;
+pub use replay::StepTime;
+use truth::{TruthSeries, wrap_pi};
+
+/// What scoring needs besides the flight directory.
+pub struct ScoreSetup<'a> {
+    pub flight_dir: &'a Path,
+    /// The simulator's NED origin: `truth.bin` positions are metres from here.
+    pub truth_origin: GeodeticPosition,
+    /// The estimator task's budget in the schedule.
+    pub estimator_budget_ns: u64,
+    /// Run the `ahrs` package's filters on the same IMU data (needs python3 with ahrs).
+    pub reference_filters: bool,
+}
+
+/// Root-mean-square and largest magnitude of a series of errors.
+#[derive(Clone, Copy, Debug, Default)]
+struct ErrorStats {
+    n: u64,
+    sum_sq: f64,
+    max_abs: f64,
+}
+
+impl ErrorStats {
+    fn push(&mut self, e: f64) {
+        if e.is_finite() {
+            self.n += 1;
+            self.sum_sq += e * e;
+            self.max_abs = self.max_abs.max(e.abs());
+        }
+    }
+    fn rms(&self) -> f64 {
+        if self.n == 0 {
+            f64::NAN
+        } else {
+            (self.sum_sq / self.n as f64).sqrt()
+        }
+    }
+}
+
+/// Roll and pitch errors of one filter (degrees).
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct RollPitch {
+    pub roll_rms_deg: f64,
+    pub roll_max_deg: f64,
+    pub pitch_rms_deg: f64,
+    pub pitch_max_deg: f64,
+    pub samples: u64,
+}
+
+impl RollPitch {
+    fn from_stats(roll: &ErrorStats, pitch: &ErrorStats) -> Self {
+        Self {
+            roll_rms_deg: roll.rms().to_degrees(),
+            roll_max_deg: roll.max_abs.to_degrees(),
+            pitch_rms_deg: pitch.rms().to_degrees(),
+            pitch_max_deg: pitch.max_abs.to_degrees(),
+            samples: roll.n,
+        }
+    }
+}
+
+/// The stretch scored: from the estimator's first healthy estimate to the end of the log,
+/// healthy estimates only.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct Window {
+    pub from_s: f64,
+    pub to_s: f64,
+    pub estimates: u64,
+    /// Of those, with the airplane off the ground.
+    pub airborne_estimates: u64,
+}
+
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct AttitudeScore {
+    pub roll_rms_deg: f64,
+    pub roll_max_deg: f64,
+    pub pitch_rms_deg: f64,
+    pub pitch_max_deg: f64,
+    pub yaw_rms_deg: f64,
+    pub yaw_max_deg: f64,
+}
+
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct PositionScore {
+    pub horizontal_rms_m: f64,
+    pub horizontal_max_m: f64,
+    pub vertical_rms_m: f64,
+    pub vertical_max_m: f64,
+    /// Of the 3-D velocity error.
+    pub velocity_rms_m_s: f64,
+    /// The baseline: the GPS fixes' own horizontal error against truth, each compared with
+    /// truth `gps_lag_ms` earlier than it was logged (the lag that fits best, so this is the
+    /// receiver's noise, not its latency).
+    pub gps_horizontal_rms_m: f64,
+    pub gps_vertical_rms_m: f64,
+    pub gps_lag_ms: f64,
+    pub gps_fixes: u64,
+    /// Estimate horizontal RMS over GPS horizontal RMS (below 1: the filter beats the GPS).
+    pub horizontal_ratio_to_gps: f64,
+}
+
+/// How the autopilot held its targets in AUTO.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct ControlScore {
+    /// Seconds flown in AUTO.
+    pub auto_s: f64,
+    /// True altitude against the commanded one while holding: from 10 s after AUTO engaged,
+    /// in the altitude loop's hold zone, and from when the loop first came within 1 m of each
+    /// new altitude command (climbs and descents to a new waypoint altitude are not holds).
+    pub altitude_hold_rms_m: f64,
+    pub altitude_hold_max_m: f64,
+    pub altitude_hold_s: f64,
+    /// Over the same samples, the loop's own error: the estimated altitude against the
+    /// command. The difference to `altitude_hold_rms_m` is the estimator's (GPS's) altitude
+    /// error, which no control loop can see.
+    pub altitude_hold_loop_rms_m: f64,
+    /// True course over ground against the commanded course (the autopilot holds course: no
+    /// magnetometer), while the command has been steady (within 5° over 5 s), from 10 s after
+    /// AUTO engaged.
+    pub heading_hold_rms_deg: f64,
+    pub heading_hold_max_deg: f64,
+    pub heading_hold_s: f64,
+    /// The same errors over all of AUTO, turns and climbs included.
+    pub altitude_error_auto_rms_m: f64,
+    pub course_error_auto_rms_deg: f64,
+}
+
+/// One target of the issue, and whether this flight met it.
+#[derive(Clone, Debug, Serialize)]
+pub struct Target {
+    pub name: &'static str,
+    pub value: f64,
+    pub limit: f64,
+    pub met: bool,
+}
+
+#[derive(Debug, Serialize)]
+pub struct Score {
+    pub window: Window,
+    pub attitude: AttitudeScore,
+    pub position: PositionScore,
+    pub control: ControlScore,
+    pub estimator_step: StepTime,
+    pub reference_filters: ReferenceFilters,
+    pub targets: Vec<Target>,
+    pub targets_met: bool,
+    /// Damaged records met while reading the logs (each printed on stderr).
+    pub log_problems: usize,
+}
+
+/// Seconds of a log TIME.
+fn seconds(t_ns: i64) -> f64 {
+    t_ns as f64 * 1e-9
+}
+
+struct Logs {
+    truth: Stream,
+    estimator: Stream,
+    gps: Stream,
+    control: Stream,
+    imu: Stream,
+}
+
+impl Logs {
+    fn load(dir: &Path) -> Result<Self, String> {
+        let load = |name: &str| {
+            let path = dir.join(format!("{name}.bin"));
+            if !path.is_file() {
+                return Err(format!(
+                    "{}: missing (is this a simulated flight?)",
+                    path.display()
+                ));
+            }
+            load_stream(&path, |p| eprintln!("{}", problem_line(&path, p)))
+        };
+        Ok(Self {
+            truth: load("truth")?,
+            estimator: load("estimator")?,
+            gps: load("gps")?,
+            control: load("control")?,
+            imu: load("imu")?,
+        })
+    }
+
+    fn problems(&self) -> usize {
+        [
+            &self.truth,
+            &self.estimator,
+            &self.gps,
+            &self.control,
+            &self.imu,
+        ]
+        .iter()
+        .map(|s| s.problems)
+        .sum()
+    }
+}
+
+/// Format 1 of `stream`, or why not.
+fn table<'s>(stream: &'s Stream, what: &str) -> Result<&'s Table, String> {
+    stream
+        .table(1)
+        .ok_or_else(|| format!("{}: no {what} records", stream.path.display()))
+}
+
+/// A named column, or why not.
+fn column<'t>(table: &'t Table, stream: &str, name: &str) -> Result<&'t [f64], String> {
+    table
+        .column(name)
+        .ok_or_else(|| format!("{stream}.bin has no column `{name}`"))
+}
+
+/// Scores the flight in `setup.flight_dir`.
+pub fn score_flight(setup: &ScoreSetup<'_>) -> Result<Score, String> {
+    let logs = Logs::load(setup.flight_dir)?;
+    let truth = TruthSeries::from_table(table(&logs.truth, "truth")?)?;
+    if truth.is_empty() {
+        return Err("truth.bin holds no samples".into());
+    }
+    let gps = table(&logs.gps, "GPS")?;
+    let home = gps_home(gps)?;
+    let frame = LocalFrame::new(home)
+        .ok_or_else(|| format!("the first GPS fix is not a plausible home: {home:?}"))?;
+    let estimator = table(&logs.estimator, "estimate")?;
+    let (window, attitude, position_error) =
+        score_estimates(estimator, &truth, &frame, &setup.truth_origin)?;
+    let position = score_gps(gps, &truth, &setup.truth_origin, window, position_error)?;
+    let control = score_control(
+        table(&logs.control, "control")?,
+        &truth,
+        home.altitude_m,
+        setup.truth_origin.alt_msl_m,
+    )?;
+    let estimator_step =
+        replay::time_estimator(table(&logs.imu, "IMU")?, gps, setup.estimator_budget_ns)?;
+    let reference_filters = if setup.reference_filters {
+        reference::score(
+            setup.flight_dir,
+            table(&logs.imu, "IMU")?,
+            &truth,
+            window,
+            RollPitch {
+                roll_rms_deg: attitude.roll_rms_deg,
+                roll_max_deg: attitude.roll_max_deg,
+                pitch_rms_deg: attitude.pitch_rms_deg,
+                pitch_max_deg: attitude.pitch_max_deg,
+                samples: window.estimates,
+            },
+        )
+    } else {
+        ReferenceFilters::NotRun
+    };
+    let targets = vec![
+        target("roll_rms_deg", attitude.roll_rms_deg, 0.5),
+        target("pitch_rms_deg", attitude.pitch_rms_deg, 0.5),
+        target("yaw_rms_deg", attitude.yaw_rms_deg, 2.0),
+        target(
+            "horizontal_rms_m below gps_horizontal_rms_m",
+            position.horizontal_rms_m,
+            position.gps_horizontal_rms_m,
+        ),
+        target("altitude_hold_rms_m", control.altitude_hold_rms_m, 3.0),
+        target("heading_hold_rms_deg", control.heading_hold_rms_deg, 3.0),
+        // "Far below its budget": a tenth of it on average.
+        target(
+            "estimator_step_mean_us below a tenth of the budget",
+            estimator_step.mean_us,
+            estimator_step.budget_us / 10.0,
+        ),
+    ];
+    let targets_met = targets.iter().all(|t| t.met);
+    Ok(Score {
+        window,
+        attitude,
+        position,
+        control,
+        estimator_step,
+        reference_filters,
+        targets,
+        targets_met,
+        log_problems: logs.problems(),
+    })
+}
+
+fn target(name: &'static str, value: f64, limit: f64) -> Target {
+    Target {
+        name,
+        value,
+        limit,
+        // NaN (nothing measured) is not a target met.
+        met: value <= limit,
+    }
+}
+
+/// The estimator's home: the first valid GPS fix (`docs/log-streams.md`, estimator.bin).
+fn gps_home(gps: &Table) -> Result<GeoPoint, String> {
+    let valid = column(gps, "gps", "valid")?;
+    let (lat, lon, alt) = (
+        column(gps, "gps", "lat_deg")?,
+        column(gps, "gps", "lon_deg")?,
+        column(gps, "gps", "alt_m")?,
+    );
+    (0..valid.len())
+        .find_map(|i| {
+            let p = GeoPoint {
+                latitude_deg: *lat.get(i)?,
+                longitude_deg: *lon.get(i)?,
+                altitude_m: *alt.get(i)?,
+            };
+            (*valid.get(i)? == 1.0 && p.is_plausible()).then_some(p)
+        })
+        .ok_or_else(|| "gps.bin has no valid fix: nothing to place the estimates".to_string())
+}
+
+/// An estimate's position in the simulator's frame: through geodetic coordinates, since the
+/// estimator's origin (its first GPS fix) is not the simulator's.
+fn to_truth_frame(frame: &LocalFrame, origin: &GeodeticPosition, ned: [f64; 3]) -> [f64; 3] {
+    let p = frame.to_geodetic(&Vector3::new(ned[0], ned[1], ned[2]));
+    origin.ned_to(&GeodeticPosition {
+        lat_deg: p.latitude_deg,
+        lon_deg: p.longitude_deg,
+        alt_msl_m: p.altitude_m,
+    })
+}
+
+/// Position and velocity error statistics of the estimates, for `score_gps` to complete.
+struct PositionError {
+    horizontal: ErrorStats,
+    vertical: ErrorStats,
+    velocity: ErrorStats,
+}
+
+fn score_estimates(
+    est: &Table,
+    truth: &TruthSeries,
+    frame: &LocalFrame,
+    origin: &GeodeticPosition,
+) -> Result<(Window, AttitudeScore, PositionError), String> {
+    let c = |name| column(est, "estimator", name);
+    let (roll, pitch, yaw) = (c("roll_rad")?, c("pitch_rad")?, c("yaw_rad")?);
+    let (vn, ve, vd) = (c("vn_m_s")?, c("ve_m_s")?, c("vd_m_s")?);
+    let (pn, pe, pd) = (c("pn_m")?, c("pe_m")?, c("pd_m")?);
+    let healthy = c("healthy")?;
+    let first = healthy
+        .iter()
+        .position(|&h| h == 1.0)
+        .ok_or("the estimator never became healthy: nothing to score")?;
+    let mut stats = [ErrorStats::default(); 3];
+    let mut pos = PositionError {
+        horizontal: ErrorStats::default(),
+        vertical: ErrorStats::default(),
+        velocity: ErrorStats::default(),
+    };
+    let mut window = Window {
+        from_s: est.times_ns.get(first).copied().map_or(f64::NAN, seconds),
+        to_s: est.times_ns.last().copied().map_or(f64::NAN, seconds),
+        estimates: 0,
+        airborne_estimates: 0,
+    };
+    for (i, &t) in est.times_ns.iter().enumerate().skip(first) {
+        let at = |col: &[f64]| col.get(i).copied().unwrap_or(f64::NAN);
+        if at(healthy) != 1.0 {
+            continue;
+        }
+        let Some(tr) = truth.at(t) else { continue };
+        window.estimates += 1;
+        window.airborne_estimates += u64::from(!tr.on_ground);
+        let [r, p, y] = &mut stats;
+        r.push(wrap_pi(at(roll) - tr.roll_rad));
+        p.push(wrap_pi(at(pitch) - tr.pitch_rad));
+        y.push(wrap_pi(at(yaw) - tr.yaw_rad));
+        let ned = to_truth_frame(frame, origin, [at(pn), at(pe), at(pd)]);
+        pos.horizontal
+            .push((ned[0] - tr.ned_m[0]).hypot(ned[1] - tr.ned_m[1]));
+        pos.vertical.push(ned[2] - tr.ned_m[2]);
+        let dv = [
+            at(vn) - tr.vel_ned_mps[0],
+            at(ve) - tr.vel_ned_mps[1],
+            at(vd) - tr.vel_ned_mps[2],
+        ];
+        pos.velocity
+            .push((dv[0] * dv[0] + dv[1] * dv[1] + dv[2] * dv[2]).sqrt());
+    }
+    let [r, p, y] = stats;
+    Ok((
+        window,
+        AttitudeScore {
+            roll_rms_deg: r.rms().to_degrees(),
+            roll_max_deg: r.max_abs.to_degrees(),
+            pitch_rms_deg: p.rms().to_degrees(),
+            pitch_max_deg: p.max_abs.to_degrees(),
+            yaw_rms_deg: y.rms().to_degrees(),
+            yaw_max_deg: y.max_abs.to_degrees(),
+        },
+        pos,
+    ))
+}
+
+/// The GPS's own error over the window, at the lag that fits it best (0–500 ms).
+fn score_gps(
+    gps: &Table,
+    truth: &TruthSeries,
+    origin: &GeodeticPosition,
+    window: Window,
+    est: PositionError,
+) -> Result<PositionScore, String> {
+    let valid = column(gps, "gps", "valid")?;
+    let (lat, lon, alt) = (
+        column(gps, "gps", "lat_deg")?,
+        column(gps, "gps", "lon_deg")?,
+        column(gps, "gps", "alt_m")?,
+    );
+    let fixes: Vec<(i64, [f64; 3])> = gps
+        .times_ns
+        .iter()
+        .enumerate()
+        .filter(|&(i, &t)| {
+            valid.get(i) == Some(&1.0) && seconds(t) >= window.from_s && seconds(t) <= window.to_s
+        })
+        .filter_map(|(i, &t)| {
+            let p = GeodeticPosition {
+                lat_deg: *lat.get(i)?,
+                lon_deg: *lon.get(i)?,
+                alt_msl_m: *alt.get(i)?,
+            };
+            p.lat_deg.is_finite().then(|| (t, origin.ned_to(&p)))
+        })
+        .collect();
+    let errors_at = |lag_ns: i64| {
+        let (mut h, mut v) = (ErrorStats::default(), ErrorStats::default());
+        for (t, ned) in &fixes {
+            if let Some(tr) = truth.at(t - lag_ns) {
+                h.push((ned[0] - tr.ned_m[0]).hypot(ned[1] - tr.ned_m[1]));
+                v.push(ned[2] - tr.ned_m[2]);
+            }
+        }
+        (h, v)
+    };
+    let (lag_ns, (h, v)) = (0..=50)
+        .map(|k| k * 10_000_000)
+        .map(|lag| (lag, errors_at(lag)))
+        .min_by(|a, b| a.1.0.rms().total_cmp(&b.1.0.rms()))
+        .unwrap_or((0, errors_at(0)));
+    Ok(PositionScore {
+        horizontal_rms_m: est.horizontal.rms(),
+        horizontal_max_m: est.horizontal.max_abs,
+        vertical_rms_m: est.vertical.rms(),
+        vertical_max_m: est.vertical.max_abs,
+        velocity_rms_m_s: est.velocity.rms(),
+        gps_horizontal_rms_m: h.rms(),
+        gps_vertical_rms_m: v.rms(),
+        gps_lag_ms: lag_ns as f64 * 1e-6,
+        gps_fixes: h.n,
+        horizontal_ratio_to_gps: est.horizontal.rms() / h.rms(),
+    })
+}
+
+/// Altitude and course hold in AUTO (`control.bin` format 1, 50 Hz).
+fn score_control(
+    control: &Table,
+    truth: &TruthSeries,
+    home_alt_msl_m: f64,
+    origin_alt_msl_m: f64,
+) -> Result<ControlScore, String> {
+    const AUTO: f64 = 2.0;
+    const ZONE_HOLD: f64 = 0.0;
+    const SETTLE_NS: i64 = 10_000_000_000;
+    const STEADY_NS: i64 = 5_000_000_000;
+    const CAPTURE_M: f64 = 1.0;
+    let steady_rad = 5f64.to_radians();
+    let c = |name| column(control, "control", name);
+    let (mode, zone) = (c("mode")?, c("zone")?);
+    let (alt_c, course_c) = (c("alt_c_m")?, c("course_c_rad")?);
+    let alt_est = c("alt_m")?;
+    let times = &control.times_ns;
+    let mut auto_since: Option<i64> = None;
+    let mut last_t: Option<i64> = None;
+    let mut auto_ns = 0i64;
+    let (mut alt_hold, mut alt_all) = (ErrorStats::default(), ErrorStats::default());
+    let mut alt_hold_loop = ErrorStats::default();
+    let (mut last_alt_c, mut captured) = (f64::NAN, false);
+    let (mut course_hold, mut course_all) = (ErrorStats::default(), ErrorStats::default());
+    for (i, &t) in times.iter().enumerate() {
+        let at = |col: &[f64]| col.get(i).copied().unwrap_or(f64::NAN);
+        let in_auto = at(mode) == AUTO;
+        if in_auto {
+            auto_ns += last_t.filter(|_| auto_since.is_some()).map_or(0, |l| t - l);
+        }
+        auto_since = match (in_auto, auto_since) {
+            (true, None) => Some(t),
+            (true, since) => since,
+            (false, _) => None,
+        };
+        last_t = Some(t);
+        let (Some(since), Some(tr)) = (auto_since, truth.at(t)) else {
+            continue;
+        };
+        let settled = t - since >= SETTLE_NS;
+        // Altitudes as MSL: the command is above the estimator's home, truth below the
+        // simulator's origin.
+        let alt_err = (origin_alt_msl_m - tr.ned_m[2]) - (home_alt_msl_m + at(alt_c));
+        alt_all.push(alt_err);
+        // Holding starts once the loop has captured a new altitude command (its own error
+        // within CAPTURE_M); the way there is a climb or descent, not a hold.
+        if (at(alt_c) - last_alt_c).abs() > 0.5 || t == since {
+            captured = false;
+        }
+        last_alt_c = at(alt_c);
+        captured |= (at(alt_est) - at(alt_c)).abs() < CAPTURE_M;
+        if settled && captured && at(zone) == ZONE_HOLD {
+            alt_hold.push(alt_err);
+            alt_hold_loop.push(at(alt_est) - at(alt_c));
+        }
+        let course = tr.vel_ned_mps[1].atan2(tr.vel_ned_mps[0]);
+        let course_err = wrap_pi(course - at(course_c));
+        course_all.push(course_err);
+        let earlier = times.partition_point(|&x| x < t - STEADY_NS);
+        let steady = times.get(earlier).is_some_and(|&te| te >= since)
+            && course_c
+                .get(earlier)
+                .is_some_and(|&before| wrap_pi(at(course_c) - before).abs() < steady_rad);
+        if settled && steady {
+            course_hold.push(course_err);
+        }
+    }
+    // 50 Hz rows: each stands for 20 ms.
+    let seconds_of = |s: &ErrorStats| s.n as f64 * 0.02;
+    Ok(ControlScore {
+        auto_s: seconds(auto_ns),
+        altitude_hold_rms_m: alt_hold.rms(),
+        altitude_hold_max_m: alt_hold.max_abs,
+        altitude_hold_s: seconds_of(&alt_hold),
+        altitude_hold_loop_rms_m: alt_hold_loop.rms(),
+        heading_hold_rms_deg: course_hold.rms().to_degrees(),
+        heading_hold_max_deg: course_hold.max_abs.to_degrees(),
+        heading_hold_s: seconds_of(&course_hold),
+        altitude_error_auto_rms_m: alt_all.rms(),
+        course_error_auto_rms_deg: course_all.rms().to_degrees(),
+    })
+}
+
+/// The score for people: one line per figure, each target with ok/MISSED.
+pub fn render_score(s: &Score) -> String {
+    let mut out = format!(
+        "score against ground truth, {:.1}-{:.1} s ({} healthy estimates, {} airborne)\n",
+        s.window.from_s, s.window.to_s, s.window.estimates, s.window.airborne_estimates
+    );
+    let a = &s.attitude;
+    out += &format!(
+        "  attitude error  roll {:.2} deg RMS ({:.2} max), pitch {:.2} ({:.2}), yaw {:.2} ({:.2})\n",
+        a.roll_rms_deg,
+        a.roll_max_deg,
+        a.pitch_rms_deg,
+        a.pitch_max_deg,
+        a.yaw_rms_deg,
+        a.yaw_max_deg
+    );
+    let p = &s.position;
+    out += &format!(
+        "  position error  horizontal {:.2} m RMS vs GPS {:.2} m (x{:.2}), vertical {:.2} m vs GPS {:.2} m; velocity {:.3} m/s RMS\n",
+        p.horizontal_rms_m,
+        p.gps_horizontal_rms_m,
+        p.horizontal_ratio_to_gps,
+        p.vertical_rms_m,
+        p.gps_vertical_rms_m,
+        p.velocity_rms_m_s
+    );
+    let c = &s.control;
+    out += &format!(
+        "  auto ({:.0} s)   altitude hold {:.2} m RMS over {:.0} s, heading hold {:.2} deg RMS over {:.0} s\n",
+        c.auto_s,
+        c.altitude_hold_rms_m,
+        c.altitude_hold_s,
+        c.heading_hold_rms_deg,
+        c.heading_hold_s
+    );
+    let e = &s.estimator_step;
+    out += &format!(
+        "  estimator step  {:.1} us mean, {:.1} us p99, {:.1} us max of a {:.0} us budget ({} build, replayed)\n",
+        e.mean_us, e.p99_us, e.max_us, e.budget_us, e.build
+    );
+    out += &reference::render(&s.reference_filters);
+    for t in &s.targets {
+        out += &format!(
+            "  {} {}: {:.3} (limit {:.3})\n",
+            if t.met { "ok    " } else { "MISSED" },
+            t.name,
+            t.value,
+            t.limit
+        );
+    }
+    out
+}
