@@ -649,7 +649,10 @@ fn gps_course_sets_the_heading() {
         ..Default::default()
     });
     let f = [0.0, 0.0, -GRAVITY_MPS2 as f32];
-    for k in 1..=60u64 {
+    // Aligned after 50 samples; the fix must be measured (received less the GPS latency)
+    // after that, when the filter has a state to place it against.
+    let steps = 50 + EstimatorConfig::default().gps_latency_ns / STEP_NS + 10;
+    for k in 1..=steps {
         est.imu(k * STEP_NS, DT, [0.0; 3], f);
     }
     let e = est.estimate();
@@ -659,7 +662,7 @@ fn gps_course_sets_the_heading() {
     );
     let course = 2.0f32;
     est.gps(&GpsFix {
-        received_ns: 60 * STEP_NS,
+        received_ns: steps * STEP_NS,
         valid: true,
         latitude_deg: Some(10.0),
         longitude_deg: Some(20.0),

@@ -266,3 +266,79 @@ pub fn load_stream(path: &Path, mut on_problem: impl FnMut(&Problem)) -> Result<
     stream.tables.retain(|_, t| !t.times_ns.is_empty());
     Ok(stream)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use skyframe_core::logfmt::record::{
+        DataBlockWriter, LogFormat, encode_begin_data, encode_end_data,
+    };
+
+    const FORMAT: LogFormat = LogFormat::new("%hhu,%.3f,%.6lf", "counter,x_m,t_s");
+
+    /// A log with one session of `rows` records, then `tail` appended raw.
+    fn write_log(path: &Path, rows: u8, tail: &[u8]) {
+        let format = FORMAT.parse().expect("format");
+        let mut bytes = Vec::new();
+        let mut buf = [0u8; 512];
+        let mut push = |n: usize, buf: &[u8]| bytes.extend_from_slice(buf.get(..n).expect("n"));
+        let n = FORMAT.encode_declaration(&mut buf, 1).expect("declaration");
+        push(n, &buf);
+        let n = encode_begin_data(&mut buf, 0).expect("begin");
+        push(n, &buf);
+        for i in 0..rows {
+            let t_ns = u64::from(i) * 10_000_000;
+            let n = DataBlockWriter::new(&mut buf, 1, t_ns, &format)
+                .u8(i)
+                .f32(f32::from(i) * 0.5)
+                .f64(t_ns as f64 * 1e-9)
+                .finish()
+                .expect("record");
+            push(n, &buf);
+        }
+        let n = encode_end_data(&mut buf, 0).expect("end");
+        push(n, &buf);
+        bytes.extend_from_slice(tail);
+        std::fs::write(path, bytes).expect("write");
+    }
+
+    #[test]
+    fn a_stream_loads_as_named_columns_with_times_and_sessions() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("probe.bin");
+        write_log(&path, 50, &[]);
+        let stream = load_stream(&path, |p| panic!("no problem expected: {p:?}")).expect("load");
+        assert_eq!(stream.name, "probe");
+        assert_eq!(stream.problems, 0);
+        let table = stream.table(1).expect("format 1");
+        assert_eq!(table.columns, ["counter", "x_m", "t_s"]);
+        assert_eq!(table.times_ns.len(), 50);
+        assert_eq!(table.times_ns.get(7), Some(&70_000_000));
+        assert_eq!(table.column("x_m").and_then(|c| c.get(7)), Some(&3.5));
+        assert_eq!(table.column("counter").and_then(|c| c.get(49)), Some(&49.0));
+        assert!(table.sessions.iter().all(|&s| s == 1));
+        assert_eq!(stream.first_time_ns(), Some(0));
+    }
+
+    #[test]
+    fn damage_is_reported_with_its_offset_and_the_rest_still_loads() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("damaged.bin");
+        write_log(&path, 10, &[0x7B, 0x22, 0x00, 0x01]);
+        let mut lines = Vec::new();
+        let stream = load_stream(&path, |p| lines.push(problem_line(&path, p))).expect("load");
+        assert_eq!(stream.table(1).map(|t| t.times_ns.len()), Some(10));
+        assert!(stream.problems > 0);
+        assert_eq!(lines.len(), stream.problems);
+        assert!(
+            lines.iter().any(|l| l.contains("damaged.bin: offset ")),
+            "{lines:?}"
+        );
+    }
+
+    #[test]
+    fn a_missing_file_is_an_error_naming_it() {
+        let e = load_stream(Path::new("/nonexistent/imu.bin"), |_| {}).expect_err("missing");
+        assert!(e.starts_with("/nonexistent/imu.bin: "), "{e}");
+    }
+}
