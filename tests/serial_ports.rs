@@ -1,6 +1,7 @@
 //! The shell's serial I/O threads on real pseudo-terminals: bytes both ways, a port that
-//! vanishes and comes back under the same path, a port missing at start.  Each test runs
-//! with the Linux platform's opener (the serialport crate).
+//! vanishes and comes back under the same path, a port missing at start. Each test runs
+//! with both platform openers: Linux's (the serialport crate) and QNX's termios port, which
+//! is portable POSIX code and runs here too.
 
 use serialport::{SerialPort, TTYPort};
 use skyframe_shell::serial::{PortConfig, PortHandle, PortState, SerialOpener, spawn_port};
@@ -166,6 +167,12 @@ macro_rules! with_each_opener {
             $(#[test]
             fn $test() {
                 super::$test(skyframe_linux::serial::open, "serialport");
+            })*
+        }
+        mod termios_opener {
+            $(#[test]
+            fn $test() {
+                super::$test(skyframe_qnx::serial::open, "termios");
             })*
         }
     };
