@@ -385,6 +385,35 @@ fn pinning_to_an_existing_cpu_is_granted() {
     assert_eq!(s["realtime"]["sched_fifo_priority"]["status"], "not_asked");
 }
 
+/// The QNX binary flies on Linux too (its timer and settings are POSIX but for the QNX-only
+/// calls), and says that the clock period, a QNX call, is refused here rather than faking it.
+#[test]
+fn the_qnx_platform_flies_on_linux_and_refuses_only_the_clock_period() {
+    let out = Command::new(skyframe_tests::binary("skyframe-qnx", "skyframe-qnx"))
+        .arg("idle")
+        .arg("--log-dir")
+        .arg(scratch("qnx_platform_on_linux"))
+        .args([
+            "--duration",
+            "0.3",
+            "--json",
+            "--priority",
+            "0",
+            "--no-mlockall",
+        ])
+        .output()
+        .expect("runs");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert_eq!(err.matches("clock period refused").count(), 1, "{err}");
+    let s = json(&out.stdout);
+    assert_eq!(s["stop_reason"], "duration");
+    assert_eq!(s["frames"], 30);
+    assert_eq!(s["realtime"]["clock_period_ns"]["status"], "refused");
+    assert_eq!(s["realtime"]["timer_slack_ns"]["status"], "not_asked");
+    assert_eq!(s["realtime"]["cpu_dma_latency_us"]["status"], "not_asked");
+}
+
 #[test]
 fn programmed_duration_ends_the_run() {
     let s = sim_json("programmed_duration_ends_the_run", "0.5", &[]);

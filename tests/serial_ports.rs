@@ -1,8 +1,10 @@
 //! The shell's serial I/O threads on real pseudo-terminals: bytes both ways, a port that
-//! vanishes and comes back under the same path, a port missing at start.
+//! vanishes and comes back under the same path, a port missing at start. Each test runs
+//! with both platform openers: Linux's (the serialport crate) and QNX's termios port, which
+//! is portable POSIX code and runs here too.
 
 use serialport::{SerialPort, TTYPort};
-use skyframe_shell::serial::{PortConfig, PortHandle, PortState, spawn_port};
+use skyframe_shell::serial::{PortConfig, PortHandle, PortState, SerialOpener, spawn_port};
 use skyframe_tests::scratch;
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
@@ -51,21 +53,23 @@ fn drain(handle: &mut PortHandle, want: usize) -> Vec<u8> {
     got
 }
 
-fn start(path: &Path) -> (PortHandle, std::thread::JoinHandle<()>, Arc<AtomicBool>) {
+fn start(
+    path: &Path,
+    open: SerialOpener,
+) -> (PortHandle, std::thread::JoinHandle<()>, Arc<AtomicBool>) {
     let stop = Arc::new(AtomicBool::new(false));
     let config = PortConfig {
         device: "imu".into(),
         path: path.to_path_buf(),
         baud: 115_200,
     };
-    let (handle, join) = spawn_port(config, Arc::clone(&stop)).expect("thread");
+    let (handle, join) = spawn_port(config, open, Arc::clone(&stop)).expect("thread");
     (handle, join, stop)
 }
 
-#[test]
-fn bytes_flow_both_ways() {
+fn bytes_flow_both_ways(open: SerialOpener, _opener: &str) {
     let (mut master, path) = device();
-    let (mut handle, join, stop) = start(&path);
+    let (mut handle, join, stop) = start(&path, open);
     wait_for("open", || handle.status.state() == PortState::Open);
     master
         .write_all(b"$GPGGA,hello*00\r\n")
@@ -90,13 +94,12 @@ fn bytes_flow_both_ways() {
     assert_eq!(handle.status.bytes_out.load(Ordering::Relaxed), 6);
 }
 
-#[test]
-fn unplugged_port_is_lost_then_resumes_when_the_path_comes_back() {
-    let dir = scratch("serial-replug");
+fn unplugged_port_is_lost_then_resumes_when_the_path_comes_back(open: SerialOpener, opener: &str) {
+    let dir = scratch(&format!("serial-replug-{opener}"));
     let link = dir.join("ttyUSB-imu");
     let (mut first, first_path) = device();
     point(&link, &first_path);
-    let (mut handle, join, stop) = start(&link);
+    let (mut handle, join, stop) = start(&link, open);
     wait_for("open", || handle.status.state() == PortState::Open);
     first.write_all(b"before").expect("write");
     assert_eq!(drain(&mut handle, 6), b"before");
@@ -115,11 +118,10 @@ fn unplugged_port_is_lost_then_resumes_when_the_path_comes_back() {
     join.join().expect("thread ends");
 }
 
-#[test]
-fn a_port_missing_at_start_is_retried_until_it_appears() {
-    let dir = scratch("serial-late");
+fn a_port_missing_at_start_is_retried_until_it_appears(open: SerialOpener, opener: &str) {
+    let dir = scratch(&format!("serial-late-{opener}"));
     let link = dir.join("ttyS-gps");
-    let (mut handle, join, stop) = start(&link);
+    let (mut handle, join, stop) = start(&link, open);
     wait_for("open attempts", || {
         handle.status.open_failures.load(Ordering::Relaxed) >= 2
     });
@@ -133,10 +135,9 @@ fn a_port_missing_at_start_is_retried_until_it_appears() {
     join.join().expect("thread ends");
 }
 
-#[test]
-fn a_full_rx_ring_counts_what_it_could_not_take() {
+fn a_full_rx_ring_counts_what_it_could_not_take(open: SerialOpener, _opener: &str) {
     let (mut master, path) = device();
-    let (handle, join, stop) = start(&path);
+    let (handle, join, stop) = start(&path, open);
     wait_for("open", || handle.status.state() == PortState::Open);
     let block = vec![0x55u8; 4096];
     let total = skyframe_shell::serial::RX_RING + 8 * 1024;
@@ -158,3 +159,28 @@ fn a_full_rx_ring_counts_what_it_could_not_take() {
     stop.store(true, Ordering::Relaxed);
     join.join().expect("thread ends");
 }
+
+/// Each test above, once per opener (named, so that their scratch directories differ).
+macro_rules! with_each_opener {
+    ($($test:ident),* $(,)?) => {
+        mod serialport_opener {
+            $(#[test]
+            fn $test() {
+                super::$test(skyframe_linux::serial::open, "serialport");
+            })*
+        }
+        mod termios_opener {
+            $(#[test]
+            fn $test() {
+                super::$test(skyframe_qnx::serial::open, "termios");
+            })*
+        }
+    };
+}
+
+with_each_opener!(
+    bytes_flow_both_ways,
+    unplugged_port_is_lost_then_resumes_when_the_path_comes_back,
+    a_port_missing_at_start_is_retried_until_it_appears,
+    a_full_rx_ring_counts_what_it_could_not_take
+);

@@ -8,6 +8,7 @@ use nix::sys::time::TimeSpec;
 use nix::time::{ClockId, ClockNanosleepFlags, clock_gettime, clock_nanosleep};
 use skyframe_core::executive::{Clock, FrameTimer};
 use skyframe_shell::platform::{Platform, RtConfig, RtReport};
+use skyframe_shell::serial::SerialOpener;
 
 /// `CLOCK_MONOTONIC`, counted from when the timer was made.
 pub struct LinuxTimer {
@@ -61,6 +62,7 @@ impl FrameTimer for LinuxTimer {
 }
 
 pub mod realtime;
+pub mod serial;
 
 /// The Linux platform.
 #[derive(Default)]
@@ -79,5 +81,9 @@ impl Platform for Linux {
 
     fn make_realtime(&self, config: &RtConfig) -> RtReport {
         realtime::apply(config)
+    }
+
+    fn serial_opener(&self) -> SerialOpener {
+        serial::open
     }
 }

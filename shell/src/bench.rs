@@ -123,7 +123,10 @@ pub fn run<P: Platform>(
     } = options;
     let realtime = &realtime;
     let each = Duration::from_secs_f64(seconds.max(0.0));
-    let rt_report = platform.make_realtime(realtime);
+    let rt_report = platform.make_realtime(&RtConfig {
+        minor_frame_ns: Some(table.minor_frame_ns),
+        ..realtime.clone()
+    });
 
     let timer = platform.timer();
     let mut bare = bare_sleep_loop(&timer, table.minor_frame_ns, each, stop);

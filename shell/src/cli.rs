@@ -72,6 +72,11 @@ pub struct RealtimeArgs {
     /// /dev/cpu_dma_latency at 0 us during the run).
     #[arg(long)]
     pub allow_deep_idle: bool,
+    /// QNX only: the system clock period (tick) to ask for, in microseconds; the longest
+    /// period at most this long that divides the minor frame is set. 0 leaves the system's
+    /// (1 ms by default, which quantises every wake-up). Linux has no tick and ignores it.
+    #[arg(long, default_value_t = 100)]
+    pub clock_period_us: u64,
 }
 
 impl RealtimeArgs {
@@ -81,6 +86,8 @@ impl RealtimeArgs {
             lock_memory: !self.no_mlockall,
             cpu: self.cpu,
             cpu_dma_latency_us: (!self.allow_deep_idle).then_some(0),
+            clock_period_ns: (self.clock_period_us > 0)
+                .then(|| self.clock_period_us.saturating_mul(1000)),
             ..RtConfig::default()
         }
     }

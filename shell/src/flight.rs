@@ -225,7 +225,7 @@ pub fn fly<P: Platform>(
             .collect(),
     };
     for (_, config, _) in &port_configs {
-        check_opens(config)?;
+        check_opens(config, platform.serial_opener())?;
     }
 
     let started = SystemTime::now();
@@ -291,8 +291,12 @@ pub fn fly<P: Platform>(
     let mut serial: Vec<SerialDevice> = Vec::new();
     let mut device_ports: Vec<(&'static str, DevicePort, LogStream, u64)> = Vec::new();
     for (name, config, stale_ns) in port_configs {
-        let (handle, join) = spawn_port(config.clone(), Arc::clone(&io_stop))
-            .map_err(|e| format!("cannot start the {name} port thread: {e}"))?;
+        let (handle, join) = spawn_port(
+            config.clone(),
+            platform.serial_opener(),
+            Arc::clone(&io_stop),
+        )
+        .map_err(|e| format!("cannot start the {name} port thread: {e}"))?;
         let log = streams.open(name, TASK_RING_BYTES);
         serial.push(SerialDevice {
             name,

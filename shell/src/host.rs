@@ -178,7 +178,10 @@ pub fn run_executive<P: Platform>(
     options: RunOptions<'_>,
     mut timing: impl TimingSink,
 ) -> Result<RunSummary, HostError> {
-    let realtime = platform.make_realtime(&options.realtime);
+    let realtime = platform.make_realtime(&RtConfig {
+        minor_frame_ns: Some(table.minor_frame_ns),
+        ..options.realtime.clone()
+    });
     for refusal in realtime.refusals() {
         log::warn!("{refusal}");
     }
@@ -335,6 +338,9 @@ mod tests {
                 ..RtReport::none()
             }
         }
+        fn serial_opener(&self) -> crate::serial::SerialOpener {
+            crate::serial::no_serial_ports
+        }
     }
 
     fn options(stop: &AtomicBool, seconds: u64, faults: FaultPlan) -> RunOptions<'_> {
@@ -370,6 +376,9 @@ mod tests {
         }
         fn make_realtime(&self, _config: &RtConfig) -> RtReport {
             RtReport::none()
+        }
+        fn serial_opener(&self) -> crate::serial::SerialOpener {
+            crate::serial::no_serial_ports
         }
     }
 

@@ -1,5 +1,6 @@
 //! What a platform crate provides to the shell.
 
+use crate::serial::SerialOpener;
 use skyframe_core::executive::FrameTimer;
 
 /// Real-time settings asked of the executive thread. Each is best effort: where the OS
@@ -19,6 +20,14 @@ pub struct RtConfig {
     /// `/dev/cpu_dma_latency`, held for the whole run). 0 keeps them awake: the lowest
     /// wake-up latency, at the cost of power.
     pub cpu_dma_latency_us: Option<u32>,
+    /// The system clock period (the tick) to ask for, on systems whose sleeps end on ticks
+    /// (QNX `ClockPeriod`: its default 1 ms tick quantises every wake-up). The platform
+    /// picks the largest period at most this long that divides the minor frame. Linux has
+    /// no such tick (hrtimers) and ignores it.
+    pub clock_period_ns: Option<u64>,
+    /// The minor frame of the table about to run, for settings that must fit it (the clock
+    /// period). Filled in by the shell from the frame table, not by the user.
+    pub minor_frame_ns: Option<u64>,
 }
 
 impl Default for RtConfig {
@@ -29,6 +38,8 @@ impl Default for RtConfig {
             cpu: None,
             timer_slack_ns: Some(1),
             cpu_dma_latency_us: Some(0),
+            clock_period_ns: Some(100_000),
+            minor_frame_ns: None,
         }
     }
 }
@@ -70,6 +81,8 @@ pub struct RtReport {
     pub cpu: Setting<usize>,
     pub timer_slack_ns: Setting<u64>,
     pub cpu_dma_latency_us: Setting<u32>,
+    /// The system clock period now in force (QNX; `NotAsked` where there is no tick).
+    pub clock_period_ns: Setting<u64>,
 }
 
 impl RtReport {
@@ -81,6 +94,7 @@ impl RtReport {
             cpu: Setting::NotAsked,
             timer_slack_ns: Setting::NotAsked,
             cpu_dma_latency_us: Setting::NotAsked,
+            clock_period_ns: Setting::NotAsked,
         }
     }
 
@@ -110,6 +124,11 @@ impl RtReport {
                 "cpu_dma_latency refused ({e}): CPUs may sleep deeply between frames"
             ));
         }
+        if let Some(e) = self.clock_period_ns.refusal() {
+            out.push(format!(
+                "clock period refused ({e}): wake-ups are quantised to the default tick"
+            ));
+        }
         out
     }
 }
@@ -132,4 +151,8 @@ pub trait Platform {
 
     /// Applies `config` to the calling thread (the executive thread) and the process.
     fn make_realtime(&self, config: &RtConfig) -> RtReport;
+
+    /// How this platform opens serial ports (see [`SerialOpener`]); platforms without any
+    /// give [`crate::serial::no_serial_ports`].
+    fn serial_opener(&self) -> SerialOpener;
 }

@@ -8,14 +8,46 @@
 //! A port that errors or vanishes (a USB adapter unplugged) puts the device in the `Lost`
 //! state; the thread keeps trying to open the same path and data resumes by itself when it
 //! comes back. Nothing restarts: the rings, the task and the executive carry on.
+//!
+//! The shell does not open ports itself: the platform hands it a [`SerialOpener`] (Linux
+//! opens ttys with the `serialport` crate, QNX through termios, which `serialport` does not
+//! support), and the thread only needs what [`SerialIo`] promises.
 
-use serialport::{SerialPort, TTYPort};
 use std::io::{Read, Write};
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU8, AtomicU32, AtomicU64, Ordering};
 use std::thread::JoinHandle;
 use std::time::Duration;
+
+/// An open serial port, as the I/O thread uses it.
+///
+/// `read` waits at most about [`READ_POLL`] for bytes; when none came it returns an error of
+/// kind `TimedOut` or `WouldBlock` (both mean "no bytes yet", not a failure). `Ok(0)` means
+/// the other end hung up. Every other error loses the port, and the thread reopens it.
+pub trait SerialIo: Read + Write + Send {
+    /// Fails once the port no longer points at a live device. Some vanished devices (an
+    /// unplugged USB adapter) leave reads silent instead of failing them; the thread asks
+    /// after every read.
+    fn check_alive(&mut self) -> std::io::Result<()>;
+}
+
+/// Opens `config`'s port with the read timeout [`SerialIo`] asks for. A plain function,
+/// not a method of the platform: each port's thread calls it again after every loss, so it
+/// must travel to that thread without borrowing the platform.
+pub type SerialOpener = fn(&PortConfig) -> std::io::Result<Box<dyn SerialIo>>;
+
+/// The opener of platforms without serial ports (virtual time, the simulator): every open
+/// fails, saying so.
+pub fn no_serial_ports(config: &PortConfig) -> std::io::Result<Box<dyn SerialIo>> {
+    Err(std::io::Error::new(
+        std::io::ErrorKind::Unsupported,
+        format!(
+            "this platform has no serial ports (asked for {})",
+            config.path.display()
+        ),
+    ))
+}
 
 /// One configured serial device.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -27,7 +59,8 @@ pub struct PortConfig {
 }
 
 /// How long a read waits for bytes before the thread looks at its tx ring and stop flag.
-const READ_POLL: Duration = Duration::from_millis(5);
+/// Openers give their ports this read timeout.
+pub const READ_POLL: Duration = Duration::from_millis(5);
 /// Pause between attempts to reopen a lost port.
 const REOPEN_EVERY: Duration = Duration::from_millis(100);
 /// Ring sizes: a second of the fastest device (IMU, ~4 kB/s) with room to spare.
@@ -84,10 +117,12 @@ pub struct PortHandle {
     pub status: Arc<PortStatus>,
 }
 
-/// Starts the I/O thread of one port. The thread runs until `stop` is set; its `JoinHandle`
-/// returns once the last queued output byte had its chance to be written.
+/// Starts the I/O thread of one port, which opens it (and reopens it after a loss) with
+/// `open`. The thread runs until `stop` is set; its `JoinHandle` returns once the last queued
+/// output byte had its chance to be written.
 pub fn spawn_port(
     config: PortConfig,
+    open: SerialOpener,
     stop: Arc<AtomicBool>,
 ) -> std::io::Result<(PortHandle, JoinHandle<()>)> {
     let (rx_in, rx_out) = rtrb::RingBuffer::new(RX_RING);
@@ -97,7 +132,7 @@ pub fn spawn_port(
     let join = std::thread::Builder::new()
         .name(format!("serial-{}", config.device))
         .stack_size(256 * 1024)
-        .spawn(move || port_thread(config, rx_in, tx_out, &thread_status, &stop))?;
+        .spawn(move || port_thread(config, open, rx_in, tx_out, &thread_status, &stop))?;
     Ok((
         PortHandle {
             rx: rx_out,
@@ -108,20 +143,15 @@ pub fn spawn_port(
     ))
 }
 
-fn open(config: &PortConfig) -> serialport::Result<TTYPort> {
-    serialport::new(config.path.to_string_lossy(), config.baud)
-        .timeout(READ_POLL)
-        .open_native()
-}
-
 fn port_thread(
     config: PortConfig,
+    open: SerialOpener,
     mut rx: rtrb::Producer<u8>,
     mut tx: rtrb::Consumer<u8>,
     status: &PortStatus,
     stop: &AtomicBool,
 ) {
-    let mut port: Option<TTYPort> = None;
+    let mut port: Option<Box<dyn SerialIo>> = None;
     let mut buf = [0u8; 1024];
     let mut reported_failure = false;
     while !stop.load(Ordering::Relaxed) {
@@ -155,7 +185,7 @@ fn port_thread(
             }
             continue;
         };
-        match pump(p, &mut buf, &mut rx, &mut tx, status) {
+        match pump(p.as_mut(), &mut buf, &mut rx, &mut tx, status) {
             Ok(()) => {}
             Err(e) => {
                 log::warn!("{}: {} lost: {e}", config.device, config.path.display());
@@ -168,14 +198,14 @@ fn port_thread(
     }
     // Last output (e.g. a failsafe servo command queued at shutdown) goes out if it can.
     if let Some(p) = port.as_mut() {
-        let _ = write_pending(p, &mut tx, status);
+        let _ = write_pending(p.as_mut(), &mut tx, status);
     }
     status.set_state(PortState::Closed);
 }
 
 /// One read (waiting at most `READ_POLL`) and the queued writes.
 fn pump(
-    port: &mut TTYPort,
+    port: &mut dyn SerialIo,
     buf: &mut [u8],
     rx: &mut rtrb::Producer<u8>,
     tx: &mut rtrb::Consumer<u8>,
@@ -202,19 +232,19 @@ fn pump(
                     .fetch_add((n - room) as u64, Ordering::Relaxed);
             }
         }
+        // No bytes within the read timeout (ports say it either way).
         Err(e) if e.kind() == std::io::ErrorKind::TimedOut => {}
+        Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {}
         Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
         Err(e) => return Err(e),
     }
     write_pending(port, tx, status)?;
-    // A vanished device can stay silent without erroring reads; asking the driver for its
-    // input queue fails once the file descriptor no longer points at a live tty.
-    port.bytes_to_read().map_err(std::io::Error::from)?;
-    Ok(())
+    // A vanished device can stay silent without erroring reads.
+    port.check_alive()
 }
 
 fn write_pending(
-    port: &mut TTYPort,
+    port: &mut dyn SerialIo,
     tx: &mut rtrb::Consumer<u8>,
     status: &PortStatus,
 ) -> std::io::Result<()> {
@@ -285,13 +315,12 @@ impl embedded_io::Write for DevicePort {
 /// Opens and closes `config`'s port once, to say at start — in one line naming the device
 /// and the path — when it cannot be opened at all (a typo in vehicle.toml). Later losses are
 /// the I/O thread's to retry.
-pub fn check_opens(config: &PortConfig) -> Result<(), String> {
+pub fn check_opens(config: &PortConfig, open: SerialOpener) -> Result<(), String> {
     open(config).map(drop).map_err(|e| {
         format!(
-            "devices.{}.port = {}: cannot open: {}",
+            "devices.{}.port = {}: cannot open: {e}",
             config.device,
             config.path.display(),
-            e.description
         )
     })
 }

@@ -109,6 +109,10 @@ impl Platform for VirtualTime {
     fn make_realtime(&self, _config: &RtConfig) -> RtReport {
         RtReport::none()
     }
+
+    fn serial_opener(&self) -> crate::serial::SerialOpener {
+        crate::serial::no_serial_ports
+    }
 }
 
 /// A host platform whose timer also advances a simulated world. The world is handed to the
@@ -243,5 +247,9 @@ impl<P: Platform> Platform for SimPlatform<'_, P> {
 
     fn make_realtime(&self, config: &RtConfig) -> RtReport {
         self.host.make_realtime(config)
+    }
+
+    fn serial_opener(&self) -> crate::serial::SerialOpener {
+        self.host.serial_opener()
     }
 }
