@@ -8,11 +8,12 @@
 //!   around the trim) in the altitude-hold zone; above/below the zone, full/idle throttle
 //!   and airspeed → pitch (climb/descend zones, §6.4.3).
 //!
-//! Airspeed: the airplane has no pitot; the autopilot uses the estimated ground speed (3-D
-//! norm of the GPS-aided velocity) as its airspeed — exact in still air, off by the wind
-//! otherwise. (A wind or airspeed state is future work.)
+//! Airspeed: the airplane has no pitot; the autopilot flies on the airspeed of its
+//! [`WindEstimator`] (ground velocity less the wind learnt from the velocity across the nose,
+//! `control/wind.rs`), which it keeps up to date in every mode through [`Autopilot::observe`].
 
 use super::pid::{Pid, PidGains, PidTerms};
+use super::wind::WindEstimator;
 use crate::estimation::Estimate;
 use crate::tasks::servo::Controls;
 
@@ -136,6 +137,8 @@ pub struct Autopilot {
     speed_throttle: Pid,
     speed_pitch: Pid,
     zone: AltitudeZone,
+    /// Not reset with the loops: the wind does not change with the mode.
+    wind: WindEstimator,
 }
 
 impl Autopilot {
@@ -149,6 +152,7 @@ impl Autopilot {
             speed_throttle: Pid::new(gains.airspeed_throttle),
             speed_pitch: Pid::new(gains.airspeed_pitch),
             zone: AltitudeZone::Hold,
+            wind: WindEstimator::new(),
         };
         ap.set_gains(gains);
         ap
@@ -195,6 +199,16 @@ impl Autopilot {
         self.zone
     }
 
+    /// Learns the wind from an estimate; the control task calls this every step, in every
+    /// mode, so AUTO starts with the wind known.
+    pub fn observe(&mut self, est: &Estimate, dt_s: f32) {
+        self.wind.observe(est, dt_s);
+    }
+
+    pub fn wind(&self) -> &WindEstimator {
+        &self.wind
+    }
+
     /// The inner loops' terms (roll, pitch), for logs.
     pub fn inner_terms(&self) -> (PidTerms, PidTerms) {
         (self.roll.terms(), self.pitch.terms())
@@ -208,7 +222,8 @@ impl Autopilot {
             + self
                 .pitch
                 .update_with_rate(pitch_c - est.pitch_rad, q, dt_s);
-        let speed = est.ground_speed_mps().max(5.0);
+        // A coordinated turn's yaw rate is set by the airspeed.
+        let speed = self.wind.airspeed_mps(est).max(5.0);
         let r_ref = G * libm::sinf(est.roll_rad) / speed;
         let rudder = (self.gains.yaw_damper * (r_ref - r)).clamp(-1.0, 1.0);
         Controls {
@@ -237,7 +252,7 @@ impl Autopilot {
             .update_with_rate(wrap_pi(course_c - course), course_rate, dt_s);
         let altitude = est.altitude_m();
         let climb_rate = -est.velocity_ned_mps[2];
-        let speed = libm::sqrtf(est.velocity_ned_mps.iter().map(|v| v * v).sum::<f32>());
+        let speed = self.wind.airspeed_mps(est);
         let error = altitude_c - altitude;
         let zone = if error > g.altitude_zone_m {
             AltitudeZone::Climb

@@ -30,10 +30,10 @@ use crate::logfmt::record::LogFormat;
 use core::cell::RefCell;
 
 pub const CONTROL_LOG: LogFormat = LogFormat::new(
-    "%hhu,%hhu,%.4f,%.4f,%.4f,%.2f,%.2f,%.3f,%.3f,%.3f,%.3f,%.4f,%.4f,%.4f,%.2f,%.2f,%hhu,%hhu,%.3f,%.3f,%.3f,%.3f,%hhu",
+    "%hhu,%hhu,%.4f,%.4f,%.4f,%.2f,%.2f,%.3f,%.3f,%.3f,%.3f,%.4f,%.4f,%.4f,%.2f,%.2f,%hhu,%hhu,%.3f,%.3f,%.3f,%.3f,%hhu,%.2f,%.2f",
     "mode,reason,roll_rad,pitch_rad,course_rad,alt_m,speed_m_s,stick_aileron,stick_elevator,\
      stick_throttle,stick_rudder,roll_c_rad,pitch_c_rad,course_c_rad,alt_c_m,speed_c_m_s,zone,\
-     waypoint,aileron,elevator,throttle,rudder,ready",
+     waypoint,aileron,elevator,throttle,rudder,ready,wind_n_m_s,wind_e_m_s",
 );
 pub const CONTROL_GAINS_LOG: LogFormat = LogFormat::new(
     "%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.2f,%.2f,%.2f,%.2f,%.2f",
@@ -336,6 +336,9 @@ impl<'a, S: RecordSink> ControlTask<'a, S> {
             .map_or(FlightMode::Stabilise, |l| l.value);
         let fresh_estimate = estimate
             .filter(|e| e.health.healthy && now_ns.saturating_sub(e.t_ns) <= ESTIMATE_TIMEOUT_NS);
+        if let Some(e) = &fresh_estimate {
+            self.autopilot.observe(e, dt_s);
+        }
         let decision = decide(&ModeInputs {
             pilot_switch: pilot.map(|p| p.mode),
             requested,
@@ -410,9 +413,10 @@ impl<'a, S: RecordSink> ControlTask<'a, S> {
                     e.pitch_rad,
                     e.course_rad(),
                     e.altitude_m(),
-                    e.ground_speed_mps(),
+                    self.autopilot.wind().airspeed_mps(&e),
                 )
             });
+        let [wind_n, wind_e] = self.autopilot.wind().wind_ne_mps();
         let (st, t, c) = (s.sticks, s.targets, s.command.controls);
         self.log
             .record(cx, CONTROL_INDEX, &self.control_format, |w| {
@@ -439,6 +443,8 @@ impl<'a, S: RecordSink> ControlTask<'a, S> {
                     .f32(c.throttle)
                     .f32(c.rudder)
                     .u8(u8::from(s.command.ready))
+                    .f32(wind_n)
+                    .f32(wind_e)
             });
     }
 }
