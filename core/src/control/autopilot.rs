@@ -310,32 +310,10 @@ fn finite_or(x: f32, fallback: f32) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::estimation::estimator::{EstimatorHealth, HealthReason, Phase};
 
     fn estimate(roll: f32, pitch: f32, yaw: f32, speed: f32, alt: f32) -> Estimate {
-        Estimate {
-            t_ns: 0,
-            roll_rad: roll,
-            pitch_rad: pitch,
-            yaw_rad: yaw,
-            quaternion: [1.0, 0.0, 0.0, 0.0],
-            rates_radps: [0.0; 3],
-            velocity_ned_mps: [speed * libm::cosf(yaw), speed * libm::sinf(yaw), 0.0],
-            position_ned_m: [0.0, 0.0, -alt],
-            gyro_bias_radps: [0.0; 3],
-            accel_bias_mps2: [0.0; 3],
-            covariance_diag: [0.0; 15],
-            health: EstimatorHealth {
-                phase: Phase::Running,
-                alignment_percent: 100,
-                alignment_restarts: 0,
-                healthy: true,
-                reason: HealthReason::Ok,
-                counters: Default::default(),
-                gps_pos_nis: 0.0,
-                gps_vel_nis: 0.0,
-            },
-        }
+        let v = [speed * libm::cosf(yaw), speed * libm::sinf(yaw)];
+        crate::control::test_estimate(roll, pitch, yaw, v, alt)
     }
 
     #[test]

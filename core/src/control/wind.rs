@@ -97,37 +97,14 @@ impl WindEstimator {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::estimation::estimator::{EstimatorHealth, HealthReason, Phase};
 
     /// Flying at `airspeed` with the nose at `yaw`, in `wind`, at `alt` m.
     fn flying(yaw: f32, airspeed: f32, wind: [f32; 2], alt: f32) -> Estimate {
-        Estimate {
-            t_ns: 0,
-            roll_rad: 0.3,
-            pitch_rad: 0.0,
-            yaw_rad: yaw,
-            quaternion: [1.0, 0.0, 0.0, 0.0],
-            rates_radps: [0.0; 3],
-            velocity_ned_mps: [
-                airspeed * libm::cosf(yaw) + wind[0],
-                airspeed * libm::sinf(yaw) + wind[1],
-                0.0,
-            ],
-            position_ned_m: [0.0, 0.0, -alt],
-            gyro_bias_radps: [0.0; 3],
-            accel_bias_mps2: [0.0; 3],
-            covariance_diag: [0.0; 15],
-            health: EstimatorHealth {
-                phase: Phase::Running,
-                alignment_percent: 100,
-                alignment_restarts: 0,
-                healthy: true,
-                reason: HealthReason::Ok,
-                counters: Default::default(),
-                gps_pos_nis: 0.0,
-                gps_vel_nis: 0.0,
-            },
-        }
+        let v = [
+            airspeed * libm::cosf(yaw) + wind[0],
+            airspeed * libm::sinf(yaw) + wind[1],
+        ];
+        crate::control::test_estimate(0.3, 0.0, yaw, v, alt)
     }
 
     #[test]
