@@ -6,6 +6,10 @@
 //! there before the start; when the child prints "flight directory: PATH" (skyframe's
 //! summary does, at the end) and that is another directory, PATH wins. The child's stdout
 //! and stderr are copied to stderr line by line, so stdout holds only the report.
+//!
+//! Ctrl-C (SIGINT) or SIGTERM does not kill the tool: the flight is asked to stop (the signal
+//! is passed on once; from a terminal it has it already), ends its logs cleanly, and the
+//! report of what it flew is printed as after any other end.
 
 use std::collections::HashSet;
 use std::fs::File;
@@ -13,6 +17,8 @@ use std::io::{self, BufRead, BufReader, IsTerminal, Write};
 use std::os::unix::process::ExitStatusExt;
 use std::path::{Path, PathBuf};
 use std::process::{Command, ExitCode, Stdio};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
@@ -140,6 +146,16 @@ fn exit_code_of(status: std::process::ExitStatus) -> u8 {
     }
 }
 
+/// Asks the flight to stop as Ctrl-C would (skyframe ends the run cleanly on SIGINT).
+fn stop_child(pid: u32) {
+    use nix::sys::signal::{Signal, kill};
+    use nix::unistd::Pid;
+    let Ok(pid) = i32::try_from(pid) else { return };
+    if let Err(e) = kill(Pid::from_raw(pid), Signal::SIGINT) {
+        eprintln!("run: cannot pass the interrupt on to the flight (pid {pid}): {e}");
+    }
+}
+
 pub fn run(command: &[String], output: &OutputOptions) -> ExitCode {
     let Some((program, args)) = command.split_first() else {
         eprintln!("run: no command given after --");
@@ -147,6 +163,13 @@ pub fn run(command: &[String], output: &OutputOptions) -> ExitCode {
     };
     let log_dir = log_dir_of(args);
     let before = subdirs(&log_dir);
+    let interrupted = Arc::new(AtomicBool::new(false));
+    for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        if let Err(e) = signal_hook::flag::register(signal, Arc::clone(&interrupted)) {
+            eprintln!("run: cannot catch signal {signal}: {e}; Ctrl-C will end without a report");
+        }
+    }
+    let mut passed_on = false;
     let mut child = match Command::new(program)
         .args(args)
         .stdin(Stdio::null())
@@ -228,6 +251,10 @@ pub fn run(command: &[String], output: &OutputOptions) -> ExitCode {
             let _ = io::stderr().flush();
             status_shown = true;
             last_status = Instant::now();
+        }
+        if interrupted.load(Ordering::Relaxed) && !passed_on {
+            passed_on = true;
+            stop_child(child.id());
         }
         match child.try_wait() {
             Ok(Some(status)) => break Some(status),

@@ -448,6 +448,38 @@ fn run_reports_a_fast_sim_flight_with_device_periods() {
 }
 
 #[test]
+fn an_interrupted_run_still_reports_what_was_flown() {
+    let logs = tempfile::tempdir().expect("tempdir");
+    let mut tool = overrun()
+        .args(["run", "--json", "--"])
+        .arg(skyframe())
+        .args(["idle", "--duration", "60", "--priority", "0", "--log-dir"])
+        .arg(logs.path())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("starts");
+    // Let frames be logged, then Ctrl-C the tool alone (not its process group): it must
+    // pass the interrupt on and report.
+    std::thread::sleep(std::time::Duration::from_millis(2500));
+    let pid = nix::unistd::Pid::from_raw(i32::try_from(tool.id()).expect("pid"));
+    nix::sys::signal::kill(pid, nix::sys::signal::Signal::SIGINT).expect("signal");
+    let started = std::time::Instant::now();
+    let output = tool.wait_with_output().expect("ends");
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(
+        started.elapsed() < std::time::Duration::from_secs(20),
+        "ended {:?} after the interrupt",
+        started.elapsed()
+    );
+    assert_eq!(output.status.code(), Some(0), "{stderr}");
+    let r = json_of(&output);
+    let frames = r["frames"]["count"].as_u64().expect("count");
+    // 60 s were asked for; about 2.5 s (less the timer check) were flown.
+    assert!((50..1000).contains(&frames), "{frames} frames: {stderr}");
+}
+
+#[test]
 fn run_exits_with_a_failing_childs_code() {
     let logs = tempfile::tempdir().expect("tempdir");
     let output = overrun()
