@@ -450,7 +450,7 @@ fn run_reports_a_fast_sim_flight_with_device_periods() {
 #[test]
 fn an_interrupted_run_still_reports_what_was_flown() {
     let logs = tempfile::tempdir().expect("tempdir");
-    let mut tool = overrun()
+    let tool = overrun()
         .args(["run", "--json", "--"])
         .arg(skyframe())
         .args(["idle", "--duration", "60", "--priority", "0", "--log-dir"])
