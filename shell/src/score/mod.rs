@@ -21,7 +21,7 @@ use std::path::Path;
 
 use serde::Serialize;
 use skyframe_core::estimation::geo::{GeoPoint, LocalFrame};
-use skyframe_core::estimation::nalgebra::Vector3;
+use skyframe_core::estimation::nalgebra::{UnitQuaternion, Vector3};
 use skyframe_logtable::{Stream, Table, load_stream, problem_line};
 use skyframe_sim::plant::GeodeticPosition;
 
@@ -100,12 +100,28 @@ pub struct Window {
 
 #[derive(Clone, Copy, Debug, Serialize)]
 pub struct AttitudeScore {
+    /// Euler-angle errors, over the estimates with the true pitch within ±60°: nearer the
+    /// vertical (a loop) roll and yaw stop being separate angles and their errors mean
+    /// nothing.
     pub roll_rms_deg: f64,
     pub roll_max_deg: f64,
     pub pitch_rms_deg: f64,
     pub pitch_max_deg: f64,
     pub yaw_rms_deg: f64,
     pub yaw_max_deg: f64,
+    pub euler_estimates: u64,
+    /// The angle of the rotation from the true attitude to the estimated one, over every
+    /// scored estimate (no singularity).
+    pub rotation_rms_deg: f64,
+    pub rotation_max_deg: f64,
+}
+
+/// Beyond this true pitch, Euler-angle errors are not scored (see [`AttitudeScore`]).
+pub const EULER_MAX_PITCH_RAD: f64 = 60.0 * std::f64::consts::PI / 180.0;
+
+/// The 3-2-1 attitude as a rotation (body → NED).
+fn attitude(roll: f64, pitch: f64, yaw: f64) -> UnitQuaternion<f64> {
+    UnitQuaternion::from_euler_angles(roll, pitch, yaw)
 }
 
 #[derive(Clone, Copy, Debug, Serialize)]
@@ -194,10 +210,7 @@ impl Logs {
         let load = |name: &str| {
             let path = dir.join(format!("{name}.bin"));
             if !path.is_file() {
-                return Err(format!(
-                    "{}: missing (is this a simulated flight?)",
-                    path.display()
-                ));
+                return Err(format!("no {name}.bin (is this a simulated flight?)"));
             }
             load_stream(&path, |p| eprintln!("{}", problem_line(&path, p)))
         };
@@ -240,6 +253,11 @@ fn column<'t>(table: &'t Table, stream: &str, name: &str) -> Result<&'t [f64], S
 
 /// Scores the flight in `setup.flight_dir`.
 pub fn score_flight(setup: &ScoreSetup<'_>) -> Result<Score, String> {
+    let dir = setup.flight_dir.display();
+    score_logs(setup).map_err(|e| format!("{dir}: {e}"))
+}
+
+fn score_logs(setup: &ScoreSetup<'_>) -> Result<Score, String> {
     let logs = Logs::load(setup.flight_dir)?;
     let truth = TruthSeries::from_table(table(&logs.truth, "truth")?)?;
     if truth.is_empty() {
@@ -272,7 +290,7 @@ pub fn score_flight(setup: &ScoreSetup<'_>) -> Result<Score, String> {
                 roll_max_deg: attitude.roll_max_deg,
                 pitch_rms_deg: attitude.pitch_rms_deg,
                 pitch_max_deg: attitude.pitch_max_deg,
-                samples: window.estimates,
+                samples: attitude.euler_estimates,
             },
         )
     } else {
@@ -373,7 +391,7 @@ fn score_estimates(
         .iter()
         .position(|&h| h == 1.0)
         .ok_or("the estimator never became healthy: nothing to score")?;
-    let mut stats = [ErrorStats::default(); 3];
+    let mut stats = [ErrorStats::default(); 4];
     let mut pos = PositionError {
         horizontal: ErrorStats::default(),
         vertical: ErrorStats::default(),
@@ -393,10 +411,14 @@ fn score_estimates(
         let Some(tr) = truth.at(t) else { continue };
         window.estimates += 1;
         window.airborne_estimates += u64::from(!tr.on_ground);
-        let [r, p, y] = &mut stats;
-        r.push(wrap_pi(at(roll) - tr.roll_rad));
-        p.push(wrap_pi(at(pitch) - tr.pitch_rad));
-        y.push(wrap_pi(at(yaw) - tr.yaw_rad));
+        let [r, p, y, rotation] = &mut stats;
+        if tr.pitch_rad.abs() < EULER_MAX_PITCH_RAD {
+            r.push(wrap_pi(at(roll) - tr.roll_rad));
+            p.push(wrap_pi(at(pitch) - tr.pitch_rad));
+            y.push(wrap_pi(at(yaw) - tr.yaw_rad));
+        }
+        let estimated = attitude(at(roll), at(pitch), at(yaw));
+        rotation.push(estimated.angle_to(&attitude(tr.roll_rad, tr.pitch_rad, tr.yaw_rad)));
         let ned = to_truth_frame(frame, origin, [at(pn), at(pe), at(pd)]);
         pos.horizontal
             .push((ned[0] - tr.ned_m[0]).hypot(ned[1] - tr.ned_m[1]));
@@ -409,7 +431,7 @@ fn score_estimates(
         pos.velocity
             .push((dv[0] * dv[0] + dv[1] * dv[1] + dv[2] * dv[2]).sqrt());
     }
-    let [r, p, y] = stats;
+    let [r, p, y, rotation] = stats;
     Ok((
         window,
         AttitudeScore {
@@ -419,6 +441,9 @@ fn score_estimates(
             pitch_max_deg: p.max_abs.to_degrees(),
             yaw_rms_deg: y.rms().to_degrees(),
             yaw_max_deg: y.max_abs.to_degrees(),
+            euler_estimates: r.n,
+            rotation_rms_deg: rotation.rms().to_degrees(),
+            rotation_max_deg: rotation.max_abs.to_degrees(),
         },
         pos,
     ))
@@ -575,13 +600,15 @@ pub fn render_score(s: &Score) -> String {
     );
     let a = &s.attitude;
     out += &format!(
-        "  attitude error  roll {:.2} deg RMS ({:.2} max), pitch {:.2} ({:.2}), yaw {:.2} ({:.2})\n",
+        "  attitude error  roll {:.2} deg RMS ({:.2} max), pitch {:.2} ({:.2}), yaw {:.2} ({:.2}) with |pitch| < 60 deg; rotation {:.2} deg RMS ({:.2} max) throughout\n",
         a.roll_rms_deg,
         a.roll_max_deg,
         a.pitch_rms_deg,
         a.pitch_max_deg,
         a.yaw_rms_deg,
-        a.yaw_max_deg
+        a.yaw_max_deg,
+        a.rotation_rms_deg,
+        a.rotation_max_deg
     );
     let p = &s.position;
     out += &format!(
@@ -618,4 +645,142 @@ pub fn render_score(s: &Score) -> String {
         );
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A table of `columns` with one row per entry of `rows`, 20 ms apart.
+    fn table(columns: &[&str], rows: &[Vec<f64>]) -> Table {
+        Table {
+            index: 1,
+            format_text: String::new(),
+            columns: columns.iter().map(|c| c.to_string()).collect(),
+            times_ns: (0..rows.len() as i64).map(|i| i * 20_000_000).collect(),
+            sessions: vec![1; rows.len()],
+            values: (0..columns.len())
+                .map(|c| {
+                    rows.iter()
+                        .map(|r| r.get(c).copied().unwrap_or(0.0))
+                        .collect()
+                })
+                .collect(),
+        }
+    }
+
+    const TRUTH: [&str; 19] = [
+        "north_m",
+        "east_m",
+        "down_m",
+        "vn_m_s",
+        "ve_m_s",
+        "vd_m_s",
+        "roll_rad",
+        "pitch_rad",
+        "yaw_rad",
+        "p_rad_s",
+        "q_rad_s",
+        "r_rad_s",
+        "airspeed_m_s",
+        "alpha_rad",
+        "beta_rad",
+        "wind_n_m_s",
+        "wind_e_m_s",
+        "wind_d_m_s",
+        "on_ground",
+    ];
+    const ESTIMATE: [&str; 10] = [
+        "roll_rad",
+        "pitch_rad",
+        "yaw_rad",
+        "vn_m_s",
+        "ve_m_s",
+        "vd_m_s",
+        "pn_m",
+        "pe_m",
+        "pd_m",
+        "healthy",
+    ];
+
+    /// Truth and estimate through the top of a loop: the same rotation, written with other
+    /// Euler angles near the vertical, plus a 0.2° pitch error everywhere.
+    fn loop_flight() -> (TruthSeries, Table) {
+        let mut truth = Vec::new();
+        let mut est = Vec::new();
+        for k in 0..100 {
+            let pitch = (40.0 + 0.5 * f64::from(k)).min(89.6).to_radians();
+            truth.push(vec![
+                0.0, 0.0, -100.0, 20.0, 0.0, 0.0, 0.0, pitch, 0.0, 0.0, 0.0, 0.0, 20.0, 0.0, 0.0,
+                0.0, 0.0, 0.0, 0.0,
+            ]);
+            // Near the vertical (pitch 89.6°), roll 30° and yaw 30° are almost the truth's
+            // 0/0: only their difference matters there.
+            let (roll, yaw) = if pitch > 89.0f64.to_radians() {
+                (30f64.to_radians(), 30f64.to_radians())
+            } else {
+                (0.0, 0.0)
+            };
+            est.push(vec![
+                roll,
+                pitch + 0.2f64.to_radians(),
+                yaw,
+                20.0,
+                0.0,
+                0.0,
+                0.0,
+                0.0,
+                -100.0,
+                1.0,
+            ]);
+        }
+        let truth = TruthSeries::from_table(&table(&TRUTH, &truth)).expect("truth");
+        (truth, table(&ESTIMATE, &est))
+    }
+
+    #[test]
+    fn euler_errors_skip_the_vertical_and_the_rotation_error_covers_it() {
+        let (truth, est) = loop_flight();
+        let origin = GeodeticPosition::default();
+        let frame = LocalFrame::new(GeoPoint {
+            latitude_deg: origin.lat_deg,
+            longitude_deg: origin.lon_deg,
+            altitude_m: origin.alt_msl_m,
+        })
+        .expect("home");
+        let (window, a, pos) = score_estimates(&est, &truth, &frame, &origin).expect("scores");
+        assert_eq!(window.estimates, 100);
+        // Pitch 40°..60° in 0.5° steps: 40 estimates have Euler errors scored.
+        assert_eq!(a.euler_estimates, 40);
+        assert!((a.pitch_rms_deg - 0.2).abs() < 1e-6, "{a:?}");
+        assert!(a.roll_max_deg < 1e-9 && a.yaw_max_deg < 1e-9, "{a:?}");
+        // The 30°/30° Euler pairs at 89.6° are a small rotation from the truth, not 30°.
+        assert!(a.rotation_max_deg < 1.0, "{a:?}");
+        assert!(a.rotation_rms_deg > 0.19, "{a:?}");
+        // Same place, same velocity.
+        assert!(pos.horizontal.max_abs < 1e-6 && pos.velocity.max_abs < 1e-6);
+    }
+
+    #[test]
+    fn a_target_not_measured_is_not_met() {
+        assert!(!target("x", f64::NAN, 1.0).met);
+        assert!(target("x", 1.0, 1.0).met);
+        assert!(!target("x", 1.01, 1.0).met);
+    }
+
+    #[test]
+    fn a_directory_without_the_logs_says_which_is_missing() {
+        let dir = std::env::temp_dir().join(format!("skyframe-score-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("dir");
+        let e = score_flight(&ScoreSetup {
+            flight_dir: &dir,
+            truth_origin: GeodeticPosition::default(),
+            estimator_budget_ns: 1,
+            reference_filters: false,
+        })
+        .expect_err("no logs");
+        assert!(e.contains("no truth.bin"), "{e}");
+        assert!(e.starts_with(&dir.display().to_string()), "{e}");
+        let _ = std::fs::remove_dir(&dir);
+    }
 }

@@ -101,7 +101,10 @@ fn run(
         if t_s < window.from_s || t_s > window.to_s {
             continue;
         }
-        let Some(tr) = truth.at((t_s * 1e9).round() as i64) else {
+        let Some(tr) = truth
+            .at((t_s * 1e9).round() as i64)
+            .filter(|tr| tr.pitch_rad.abs() < super::EULER_MAX_PITCH_RAD)
+        else {
             continue;
         };
         let [er, ep, mr, mp] = &mut stats;
