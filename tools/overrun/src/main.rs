@@ -57,6 +57,7 @@ enum Command {
     /// The flight directory is the new subdirectory of the command's --log-dir (default
     /// `flights`) that appears after the start, or the one the command prints as
     /// "flight directory: ...". The child's output goes to stderr; the report to stdout.
+    /// Ctrl-C stops the flight cleanly (the interrupt is passed on) and still reports.
     Run {
         #[command(flatten)]
         output: Output,
