@@ -237,6 +237,23 @@ fn a_mission_is_flown_in_auto_then_loitered_and_the_pilot_lands() {
     )
     .expect("JSON");
     assert_eq!(saved, report["score"]);
+    // `skyframe score DIR` scores the same logs again to the same figures (step times are
+    // measured anew).
+    let again = skyframe()
+        .args(["score", "--json", "--no-reference-filters"])
+        .arg(&flight)
+        .output()
+        .expect("runs");
+    assert!(
+        again.status.success(),
+        "{}",
+        String::from_utf8_lossy(&again.stderr)
+    );
+    let again: Value = serde_json::from_slice(&again.stdout).expect("JSON");
+    for group in ["window", "attitude", "position", "control"] {
+        assert_eq!(again[group], report["score"][group], "{group}");
+    }
+    assert_eq!(again["reference_filters"]["status"], "not_run");
 
     // The pilot's switch at AUTO (50-240 s) hands over to the mission, not Stabilise.
     let auto: Vec<&Vec<f64>> = control.iter().filter(|r| r[1] == 2.0).collect();
@@ -355,6 +372,21 @@ fn check_score(score: &Value, csv: &Path) {
             reference[filter]["samples"].as_u64() > Some(10_000),
             "{reference}"
         );
+    }
+}
+
+#[test]
+fn score_says_in_one_line_what_is_wrong_with_its_directory() {
+    let dir = scratch("score-bad");
+    for (arg, expected) in [
+        (dir.join("nowhere"), "not a flight directory"),
+        (dir.clone(), "no truth.bin"),
+    ] {
+        let out = skyframe().arg("score").arg(&arg).output().expect("runs");
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{stderr}");
+        assert!(stderr.contains(expected), "{stderr}");
+        assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
     }
 }
 

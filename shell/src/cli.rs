@@ -55,6 +55,9 @@ pub enum Command {
     },
     /// Measure the executive's wake-up latency and overhead against a bare timer loop.
     Bench(BenchArgs),
+    /// Score a simulated flight's logs against its ground truth again (what `sim --score`
+    /// prints), e.g. after the scoring changed or for a flight flown without `--score`.
+    Score(ScoreArgs),
 }
 
 #[derive(Args, Debug, Clone)]
@@ -203,6 +206,18 @@ pub struct SimArgs {
     pub no_reference_filters: bool,
     #[command(flatten)]
     pub flight: FlightArgs,
+}
+
+#[derive(Args, Debug)]
+pub struct ScoreArgs {
+    /// The flight directory (`flights/<UTC start>/`) of a `skyframe sim` run.
+    pub flight_dir: PathBuf,
+    /// Print the score as one JSON object.
+    #[arg(long)]
+    pub json: bool,
+    /// Leave out the ahrs reference filters.
+    #[arg(long)]
+    pub no_reference_filters: bool,
 }
 
 #[derive(Args, Debug)]
@@ -416,19 +431,11 @@ fn run<P: Platform>(platform: &P, command: Command) -> Result<ExitCode, String> 
             if !args.score {
                 return print_flight(&report, flight.json);
             }
-            let estimator_budget_ns = SHIPPED
-                .tasks
-                .iter()
-                .find(|t| t.name == "estimator")
-                .map_or(0, |t| t.budget_ns);
-            let score = crate::score::score_flight(&crate::score::ScoreSetup {
-                flight_dir: &report.flight_dir,
-                truth_origin: scenario.plant_config().gps.home,
-                estimator_budget_ns,
-                reference_filters: !args.no_reference_filters,
-            })
-            .map_err(|e| format!("score: {e}"))?;
-            write_score(&report.flight_dir, &score)?;
+            let score = score_and_keep(
+                &report.flight_dir,
+                scenario.plant_config().gps.home,
+                !args.no_reference_filters,
+            )?;
             if flight.json {
                 let mut value = serde_json::to_value(&report).map_err(|e| e.to_string())?;
                 if let serde_json::Value::Object(map) = &mut value {
@@ -441,6 +448,24 @@ fn run<P: Platform>(platform: &P, command: Command) -> Result<ExitCode, String> 
                 println!("{text}");
             } else {
                 print!("{}", render_flight(&report));
+                print!("{}", crate::score::render_score(&score));
+            }
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::Score(args) => {
+            if !args.flight_dir.is_dir() {
+                return Err(format!(
+                    "{}: not a flight directory",
+                    args.flight_dir.display()
+                ));
+            }
+            // Scenarios do not move the simulator's origin, so every flight shares it.
+            let origin = skyframe_sim::plant::GeodeticPosition::default();
+            let score = score_and_keep(&args.flight_dir, origin, !args.no_reference_filters)?;
+            if args.json {
+                let text = serde_json::to_string_pretty(&score).map_err(|e| e.to_string())?;
+                println!("{text}");
+            } else {
                 print!("{}", crate::score::render_score(&score));
             }
             Ok(ExitCode::SUCCESS)
@@ -505,11 +530,29 @@ fn print_flight(report: &FlightReport, json: bool) -> Result<ExitCode, String> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// `score.json` beside the logs, so a flight keeps its score.
-fn write_score(flight_dir: &Path, score: &crate::score::Score) -> Result<(), String> {
+/// Scores the flight in `flight_dir` and writes `score.json` beside its logs, so a flight
+/// keeps its score.
+fn score_and_keep(
+    flight_dir: &Path,
+    truth_origin: skyframe_sim::plant::GeodeticPosition,
+    reference_filters: bool,
+) -> Result<crate::score::Score, String> {
+    let estimator_budget_ns = SHIPPED
+        .tasks
+        .iter()
+        .find(|t| t.name == "estimator")
+        .map_or(0, |t| t.budget_ns);
+    let score = crate::score::score_flight(&crate::score::ScoreSetup {
+        flight_dir,
+        truth_origin,
+        estimator_budget_ns,
+        reference_filters,
+    })
+    .map_err(|e| format!("score: {e}"))?;
     let path = flight_dir.join("score.json");
-    let text = serde_json::to_string_pretty(score).map_err(|e| e.to_string())?;
-    std::fs::write(&path, text + "\n").map_err(|e| format!("{}: {e}", path.display()))
+    let text = serde_json::to_string_pretty(&score).map_err(|e| e.to_string())?;
+    std::fs::write(&path, text + "\n").map_err(|e| format!("{}: {e}", path.display()))?;
+    Ok(score)
 }
 
 /// Flies with `devices` and returns the report.
