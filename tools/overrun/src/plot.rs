@@ -281,104 +281,27 @@ fn exec_vs_budget<DB: DrawingBackend>(
 }
 
 /// The worst frames as timelines from their release: start latency, then each task's step in
-/// table order, then the executive's overhead; the red line is the minor frame's end.
+/// table order, then the executive's overhead. Drawn when the frame table is not known.
 fn worst_frames<DB: DrawingBackend>(
     data: &Data<'_>,
     root: &DrawingArea<DB, Shift>,
 ) -> Result<(), String> {
     let worst = report::worst(data.frames, data.report.worst_frames.len().max(1));
-    let rows = worst.len().max(1);
-    let minor_ns = report::matching_table(data.tasks).map(|t| t.minor_frame_ns);
-    let right = worst
+    let rows = worst
         .iter()
-        .map(|f| report::end_ns(f) as f64 / 1000.0)
-        .chain(minor_ns.map(|m| m as f64 / 1000.0))
-        .fold(1.0, f64::max);
-    let labels: Vec<String> = worst.iter().map(|f| format!("frame {}", f.frame)).collect();
-    let mut chart = ChartBuilder::on(root)
-        .caption(
-            "Worst frames: latency (grey), tasks in table order, overhead (dark); red: frame end",
-            (FONT, 18),
-        )
-        .margin(15)
-        .x_label_area_size(45)
-        .y_label_area_size(110)
-        .build_cartesian_2d(0.0..right * 1.05, -0.5..rows as f64 - 0.5)
-        .map_err(err)?;
-    chart
-        .configure_mesh()
-        .disable_y_mesh()
-        .y_labels(rows + 1)
-        .y_label_formatter(&|y: &f64| category_label(&labels, *y))
-        .x_desc("time since the frame's release (us)")
-        .label_style((FONT, 14))
-        .draw()
-        .map_err(err)?;
-    let bar = |row: usize, from: f64, to: f64| {
-        let y = row as f64;
-        [(from, y - 0.35), (to, y + 0.35)]
-    };
-    chart
-        .draw_series(worst.iter().enumerate().map(|(row, f)| {
-            Rectangle::new(
-                bar(row, 0.0, f64::from(f.start_latency_ns) / 1000.0),
-                RGBColor(200, 200, 200).filled(),
-            )
-        }))
-        .map_err(err)?;
-    // Each task's start in each frame: latency + the steps before it.
-    let mut cursor: Vec<f64> = worst
-        .iter()
-        .map(|f| f64::from(f.start_latency_ns) / 1000.0)
+        .map(|f| (format!("frame {}", f.frame), vec![(*f, 0)]))
         .collect();
-    for (i, name) in data.tasks.iter().enumerate() {
-        let mut bars = Vec::new();
-        for (row, f) in worst.iter().enumerate() {
-            if i < 32 && f.ran & (1 << i) != 0 {
-                let exec = f64::from(f.exec_ns.get(i).copied().unwrap_or(0)) / 1000.0;
-                if let Some(start) = cursor.get_mut(row) {
-                    bars.push(Rectangle::new(
-                        bar(row, *start, *start + exec),
-                        colour(i).filled(),
-                    ));
-                    *start += exec;
-                }
-            }
-        }
-        let c = colour(i);
-        chart
-            .draw_series(bars)
-            .map_err(err)?
-            .label(name.clone())
-            .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 10, y + 5)], c.filled()));
-    }
-    chart
-        .draw_series(worst.iter().enumerate().map(|(row, f)| {
-            let start = cursor.get(row).copied().unwrap_or(0.0);
-            Rectangle::new(
-                bar(row, start, report::end_ns(f) as f64 / 1000.0),
-                RGBColor(60, 60, 60).filled(),
-            )
-        }))
-        .map_err(err)?;
-    if let Some(m) = minor_ns {
-        let x = m as f64 / 1000.0;
-        chart
-            .draw_series([PathElement::new(
-                vec![(x, -0.5), (x, rows as f64 - 0.5)],
-                RED.stroke_width(2),
-            )])
-            .map_err(err)?;
-    }
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .label_font((FONT, 13))
-        .position(SeriesLabelPosition::UpperRight)
-        .draw()
-        .map_err(err)?;
-    Ok(())
+    timeline(
+        data,
+        Timeline {
+            caption: "Worst frames: latency (grey), tasks in table order, overhead (dark)",
+            x_desc: "time since the frame's release (us)",
+            unit_ns: 1e3,
+            rows,
+            releases_ns: Vec::new(),
+        },
+        root,
+    )
 }
 
 /// The worst major frames as timelines from the major frame's first release: each minor
@@ -395,40 +318,79 @@ fn worst_major_frames<DB: DrawingBackend>(
         minor_frames,
         data.report.worst_frames.len().max(1),
     );
-    let rows = worst.len().max(1);
     let per = (minor_frames as u64).max(1);
-    let ms = |ns: u64| ns as f64 / 1e6;
-    // Each minor frame's release within its major frame (ms).
-    let at = |f: &FrameRecord| ms((f.frame % per) * minor_ns);
-    let right = worst
+    let rows = worst
         .iter()
-        .flat_map(|(_, frames)| frames.iter().map(|f| at(f) + ms(report::end_ns(f))))
-        .fold(ms(per * minor_ns), f64::max);
-    let labels: Vec<String> = worst.iter().map(|(m, _)| format!("major {m}")).collect();
+        .map(|(m, frames)| {
+            let placed = frames
+                .iter()
+                .map(|f| (*f, (f.frame % per) * minor_ns))
+                .collect();
+            (format!("major {m}"), placed)
+        })
+        .collect();
+    timeline(
+        data,
+        Timeline {
+            caption: "Worst major frames: latency (grey), tasks in table order, overhead (dark)",
+            x_desc: "time since the major frame's first release (ms)",
+            unit_ns: 1e6,
+            rows,
+            releases_ns: (0..=per).map(|k| k * minor_ns).collect(),
+        },
+        root,
+    )
+}
+
+/// Frames laid out as horizontal bars, one row per label.
+struct Timeline<'f> {
+    caption: &'static str,
+    x_desc: &'static str,
+    /// Nanoseconds per unit of the x axis.
+    unit_ns: f64,
+    /// Each row's label and frames, each frame with where its release sits (ns).
+    rows: Vec<(String, Vec<(&'f FrameRecord, u64)>)>,
+    /// Where to draw release lines (ns); none: a plain x mesh.
+    releases_ns: Vec<u64>,
+}
+
+fn timeline<DB: DrawingBackend>(
+    data: &Data<'_>,
+    t: Timeline<'_>,
+    root: &DrawingArea<DB, Shift>,
+) -> Result<(), String> {
+    let x = |ns: u64| ns as f64 / t.unit_ns;
+    let rows = t.rows.len().max(1);
+    let right = t
+        .rows
+        .iter()
+        .flat_map(|(_, frames)| frames.iter().map(|(f, at)| x(at + report::end_ns(f))))
+        .chain(t.releases_ns.iter().map(|&r| x(r)))
+        .fold(1e-3, f64::max);
+    let labels: Vec<String> = t.rows.iter().map(|(label, _)| label.clone()).collect();
     let mut chart = ChartBuilder::on(root)
-        .caption(
-            "Worst major frames: latency (grey), tasks in table order, overhead (dark)",
-            (FONT, 18),
-        )
+        .caption(t.caption, (FONT, 18))
         .margin(15)
         .x_label_area_size(45)
         .y_label_area_size(110)
-        .build_cartesian_2d(0.0..right * 1.02, -0.5..rows as f64 - 0.5)
+        .build_cartesian_2d(0.0..right * 1.03, -0.5..rows as f64 - 0.5)
         .map_err(err)?;
-    chart
-        .configure_mesh()
-        .disable_mesh()
-        .y_labels(rows + 1)
+    let mut mesh = chart.configure_mesh();
+    if t.releases_ns.is_empty() {
+        mesh.disable_y_mesh();
+    } else {
+        mesh.disable_mesh();
+    }
+    mesh.y_labels(rows + 1)
         .y_label_formatter(&|y: &f64| category_label(&labels, *y))
-        .x_desc("time since the major frame's first release (ms)")
+        .x_desc(t.x_desc)
         .label_style((FONT, 14))
         .draw()
         .map_err(err)?;
     chart
-        .draw_series((0..=per).map(|k| {
-            let x = ms(k * minor_ns);
+        .draw_series(t.releases_ns.iter().map(|&r| {
             PathElement::new(
-                vec![(x, -0.5), (x, rows as f64 - 0.5)],
+                vec![(x(r), -0.5), (x(r), rows as f64 - 0.5)],
                 RGBColor(220, 220, 220),
             )
         }))
@@ -437,25 +399,27 @@ fn worst_major_frames<DB: DrawingBackend>(
         let y = row as f64;
         [(from, y - 0.35), (to, y + 0.35)]
     };
-    // (row, frame, where its next step starts)
-    let mut steps: Vec<(usize, &FrameRecord, f64)> = worst
+    // (row, frame, its release, where its next step starts)
+    let mut steps: Vec<(usize, &FrameRecord, u64, f64)> = t
+        .rows
         .iter()
         .enumerate()
-        .flat_map(|(row, (_, frames))| frames.iter().map(move |f| (row, *f, 0.0)))
+        .flat_map(|(row, (_, frames))| {
+            frames
+                .iter()
+                .map(move |(f, at)| (row, *f, *at, x(at + u64::from(f.start_latency_ns))))
+        })
         .collect();
-    for step in &mut steps {
-        step.2 = at(step.1) + ms(u64::from(step.1.start_latency_ns));
-    }
     chart
-        .draw_series(steps.iter().map(|(row, f, start)| {
-            Rectangle::new(bar(*row, at(f), *start), RGBColor(200, 200, 200).filled())
+        .draw_series(steps.iter().map(|(row, _, at, start)| {
+            Rectangle::new(bar(*row, x(*at), *start), RGBColor(200, 200, 200).filled())
         }))
         .map_err(err)?;
     for (i, name) in data.tasks.iter().enumerate() {
         let mut bars = Vec::new();
-        for (row, f, start) in &mut steps {
+        for (row, f, _, start) in &mut steps {
             if i < 32 && f.ran & (1 << i) != 0 {
-                let exec = ms(u64::from(f.exec_ns.get(i).copied().unwrap_or(0)));
+                let exec = x(u64::from(f.exec_ns.get(i).copied().unwrap_or(0)));
                 bars.push(Rectangle::new(
                     bar(*row, *start, *start + exec),
                     colour(i).filled(),
@@ -471,9 +435,9 @@ fn worst_major_frames<DB: DrawingBackend>(
             .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 10, y + 5)], c.filled()));
     }
     chart
-        .draw_series(steps.iter().map(|(row, f, start)| {
+        .draw_series(steps.iter().map(|(row, f, at, start)| {
             Rectangle::new(
-                bar(*row, *start, at(f) + ms(report::end_ns(f))),
+                bar(*row, *start, x(at + report::end_ns(f))),
                 RGBColor(60, 60, 60).filled(),
             )
         }))
