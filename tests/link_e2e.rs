@@ -60,16 +60,50 @@ fn write_key(path: &std::path::Path, byte: u8) -> LinkKey {
     LinkKey::new([byte; 32])
 }
 
+/// A ground socket on loopback whose reads time out after 50 ms, and its address.
+fn ground_socket() -> (UdpSocket, SocketAddr) {
+    let socket = UdpSocket::bind("127.0.0.1:0").expect("ground socket");
+    socket
+        .set_read_timeout(Some(Duration::from_millis(50)))
+        .expect("timeout");
+    let address = socket.local_addr().expect("addr");
+    (socket, address)
+}
+
+/// `skyframe sim` in real time, unprivileged, sending telemetry to `telemetry` and taking
+/// commands on a free port, with the key `dir/link.key` and logs in `dir/flights`; `extra`
+/// comes first.
+fn sim_on_link(
+    dir: &std::path::Path,
+    telemetry: SocketAddr,
+    extra: &[&str],
+) -> std::process::Command {
+    let mut command = skyframe();
+    command
+        .arg("sim")
+        .args(extra)
+        .args([
+            "--priority",
+            "0",
+            "--no-mlockall",
+            "--commands",
+            "127.0.0.1:0",
+        ])
+        .arg("--telemetry")
+        .arg(telemetry.to_string())
+        .arg("--key")
+        .arg(dir.join("link.key"))
+        .arg("--log-dir")
+        .arg(dir.join("flights"));
+    command
+}
+
 #[test]
 fn telemetry_commands_rates_and_a_clean_authenticated_stop() {
     let dir = scratch("link-e2e");
     let key = write_key(&dir.join("link.key"), 0x5a);
     let wrong = LinkKey::new([0x5b; 32]);
-    let socket = UdpSocket::bind("127.0.0.1:0").expect("ground socket");
-    socket
-        .set_read_timeout(Some(Duration::from_millis(50)))
-        .expect("timeout");
-    let telemetry = socket.local_addr().expect("addr");
+    let (socket, telemetry) = ground_socket();
     let mut ground = Ground {
         socket,
         vehicle: None,
@@ -77,26 +111,7 @@ fn telemetry_commands_rates_and_a_clean_authenticated_stop() {
         sequence: 0,
     };
 
-    let child = skyframe()
-        .args([
-            "sim",
-            "--duration",
-            "60",
-            "--json",
-            "--priority",
-            "0",
-            "--no-mlockall",
-        ])
-        .args([
-            "--commands",
-            "127.0.0.1:0",
-            "--telemetry",
-            &telemetry.to_string(),
-            "--key",
-        ])
-        .arg(dir.join("link.key"))
-        .arg("--log-dir")
-        .arg(dir.join("flights"))
+    let child = sim_on_link(&dir, telemetry, &["--duration", "60", "--json"])
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
@@ -208,30 +223,18 @@ fn a_key_others_can_read_is_refused_in_one_line() {
 fn a_burst_of_overruns_reaches_the_ground_at_once_and_throttled() {
     let dir = scratch("link-overruns");
     write_key(&dir.join("link.key"), 0x5c);
-    let socket = UdpSocket::bind("127.0.0.1:0").expect("ground socket");
-    socket
-        .set_read_timeout(Some(Duration::from_millis(50)))
-        .expect("timeout");
-    let telemetry = socket.local_addr().expect("addr");
+    let (socket, telemetry) = ground_socket();
     // The IMU (budget 300 us, policy reset) overruns in every release of frames 300..600:
     // 300 overruns from 3 s to 6 s of the executive's clock.
-    let child = skyframe()
-        .args(["sim", "--duration", "9", "--priority", "0", "--no-mlockall"])
-        .args(["--inject-overrun", "imu:1000@300..600"])
-        .args([
-            "--commands",
-            "127.0.0.1:0",
-            "--telemetry",
-            &telemetry.to_string(),
-            "--key",
-        ])
-        .arg(dir.join("link.key"))
-        .arg("--log-dir")
-        .arg(dir.join("flights"))
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .expect("skyframe sim");
+    let child = sim_on_link(
+        &dir,
+        telemetry,
+        &["--duration", "9", "--inject-overrun", "imu:1000@300..600"],
+    )
+    .stdout(Stdio::null())
+    .stderr(Stdio::null())
+    .spawn()
+    .expect("skyframe sim");
 
     // Every IMU status, by the vehicle's clock (s), with its budget overruns.
     let mut imu = Vec::new();
