@@ -20,6 +20,7 @@ mod truth;
 use std::path::Path;
 
 use serde::Serialize;
+use skyframe_core::devices::gps::GpsFix;
 use skyframe_core::estimation::geo::{GeoPoint, LocalFrame};
 use skyframe_core::estimation::nalgebra::{UnitQuaternion, Vector3};
 use skyframe_logtable::{Stream, Table, load_stream, problem_line};
@@ -263,26 +264,27 @@ fn score_logs(setup: &ScoreSetup<'_>) -> Result<Score, String> {
     if truth.is_empty() {
         return Err("truth.bin holds no samples".into());
     }
-    let gps = table(&logs.gps, "GPS")?;
-    let home = gps_home(gps)?;
+    // gps.bin read once: the estimator's home, the GPS's own error and the replay use it.
+    let fixes = replay::gps_fixes(table(&logs.gps, "GPS")?)?;
+    let imu = table(&logs.imu, "IMU")?;
+    let home = gps_home(&fixes)?;
     let frame = LocalFrame::new(home)
         .ok_or_else(|| format!("the first GPS fix is not a plausible home: {home:?}"))?;
     let estimator = table(&logs.estimator, "estimate")?;
     let (window, attitude, position_error) =
         score_estimates(estimator, &truth, &frame, &setup.truth_origin)?;
-    let position = score_gps(gps, &truth, &setup.truth_origin, window, position_error)?;
+    let position = score_gps(&fixes, &truth, &setup.truth_origin, window, position_error);
     let control = score_control(
         table(&logs.control, "control")?,
         &truth,
         home.altitude_m,
         setup.truth_origin.alt_msl_m,
     )?;
-    let estimator_step =
-        replay::time_estimator(table(&logs.imu, "IMU")?, gps, setup.estimator_budget_ns)?;
+    let estimator_step = replay::time_estimator(imu, &fixes, setup.estimator_budget_ns)?;
     let reference_filters = if setup.reference_filters {
         reference::score(
             setup.flight_dir,
-            table(&logs.imu, "IMU")?,
+            imu,
             &truth,
             window,
             RollPitch {
@@ -339,21 +341,16 @@ fn target(name: &'static str, value: f64, limit: f64) -> Target {
 }
 
 /// The estimator's home: the first valid GPS fix (`docs/log-streams.md`, estimator.bin).
-fn gps_home(gps: &Table) -> Result<GeoPoint, String> {
-    let valid = column(gps, "gps", "valid")?;
-    let (lat, lon, alt) = (
-        column(gps, "gps", "lat_deg")?,
-        column(gps, "gps", "lon_deg")?,
-        column(gps, "gps", "alt_m")?,
-    );
-    (0..valid.len())
-        .find_map(|i| {
+fn gps_home(fixes: &[GpsFix]) -> Result<GeoPoint, String> {
+    fixes
+        .iter()
+        .find_map(|f| {
             let p = GeoPoint {
-                latitude_deg: *lat.get(i)?,
-                longitude_deg: *lon.get(i)?,
-                altitude_m: *alt.get(i)?,
+                latitude_deg: f.latitude_deg?,
+                longitude_deg: f.longitude_deg?,
+                altitude_m: f.altitude_msl_m?,
             };
-            (*valid.get(i)? == 1.0 && p.is_plausible()).then_some(p)
+            (f.valid && p.is_plausible()).then_some(p)
         })
         .ok_or_else(|| "gps.bin has no valid fix: nothing to place the estimates".to_string())
 }
@@ -451,32 +448,23 @@ fn score_estimates(
 
 /// The GPS's own error over the window, at the lag that fits it best (0–500 ms).
 fn score_gps(
-    gps: &Table,
+    fixes: &[GpsFix],
     truth: &TruthSeries,
     origin: &GeodeticPosition,
     window: Window,
     est: PositionError,
-) -> Result<PositionScore, String> {
-    let valid = column(gps, "gps", "valid")?;
-    let (lat, lon, alt) = (
-        column(gps, "gps", "lat_deg")?,
-        column(gps, "gps", "lon_deg")?,
-        column(gps, "gps", "alt_m")?,
-    );
-    let fixes: Vec<(i64, [f64; 3])> = gps
-        .times_ns
+) -> PositionScore {
+    let in_window = |t: i64| seconds(t) >= window.from_s && seconds(t) <= window.to_s;
+    let fixes: Vec<(i64, [f64; 3])> = fixes
         .iter()
-        .enumerate()
-        .filter(|&(i, &t)| {
-            valid.get(i) == Some(&1.0) && seconds(t) >= window.from_s && seconds(t) <= window.to_s
-        })
-        .filter_map(|(i, &t)| {
+        .filter_map(|f| {
+            let t = i64::try_from(f.received_ns).ok()?;
             let p = GeodeticPosition {
-                lat_deg: *lat.get(i)?,
-                lon_deg: *lon.get(i)?,
-                alt_msl_m: *alt.get(i)?,
+                lat_deg: f.latitude_deg?,
+                lon_deg: f.longitude_deg.unwrap_or(f64::NAN),
+                alt_msl_m: f.altitude_msl_m.unwrap_or(f64::NAN),
             };
-            p.lat_deg.is_finite().then(|| (t, origin.ned_to(&p)))
+            (f.valid && in_window(t)).then(|| (t, origin.ned_to(&p)))
         })
         .collect();
     let errors_at = |lag_ns: i64| {
@@ -494,7 +482,7 @@ fn score_gps(
         .map(|lag| (lag, errors_at(lag)))
         .min_by(|a, b| a.1.0.rms().total_cmp(&b.1.0.rms()))
         .unwrap_or((0, errors_at(0)));
-    Ok(PositionScore {
+    PositionScore {
         horizontal_rms_m: est.horizontal.rms(),
         horizontal_max_m: est.horizontal.max_abs,
         vertical_rms_m: est.vertical.rms(),
@@ -505,7 +493,7 @@ fn score_gps(
         gps_lag_ms: lag_ns as f64 * 1e-6,
         gps_fixes: h.n,
         horizontal_ratio_to_gps: est.horizontal.rms() / h.rms(),
-    })
+    }
 }
 
 /// Altitude and course hold in AUTO (`control.bin` format 1, 50 Hz).

@@ -28,11 +28,10 @@ pub struct StepTime {
 /// The IMU period the task assumes between consecutive counters (`core/src/tasks/estimator.rs`).
 const IMU_PERIOD_S: f64 = 0.01;
 
-pub fn time_estimator(imu: &Table, gps: &Table, budget_ns: u64) -> Result<StepTime, String> {
+pub fn time_estimator(imu: &Table, fixes: &[GpsFix], budget_ns: u64) -> Result<StepTime, String> {
     let c = |name| column(imu, "imu", name);
     let (counter, p, q, r) = (c("counter")?, c("p_rad_s")?, c("q_rad_s")?, c("r_rad_s")?);
     let (fx, fy, fz) = (c("fx_m_s2")?, c("fy_m_s2")?, c("fz_m_s2")?);
-    let fixes = gps_fixes(gps)?;
     let mut estimator = Estimator::new(EstimatorConfig::default());
     let mut next_fix = fixes.iter().peekable();
     let mut last: Option<(f64, i64)> = None;
@@ -87,7 +86,7 @@ pub fn time_estimator(imu: &Table, gps: &Table, budget_ns: u64) -> Result<StepTi
 
 /// The logged fixes as the GPS task published them (`docs/log-streams.md`, gps.bin 1); NaN
 /// columns are fields the receiver did not give.
-fn gps_fixes(gps: &Table) -> Result<Vec<GpsFix>, String> {
+pub fn gps_fixes(gps: &Table) -> Result<Vec<GpsFix>, String> {
     let c = |name| column(gps, "gps", name);
     let (valid, lat, lon, alt) = (c("valid")?, c("lat_deg")?, c("lon_deg")?, c("alt_m")?);
     let (vn, ve, vd) = (c("vn_m_s")?, c("ve_m_s")?, c("vd_m_s")?);
