@@ -2,16 +2,15 @@
 //! drawing with plotters into PNG or SVG.
 //!
 //! Text needs a font: the bitmap backend draws glyphs with ab_glyph from DejaVu Sans, embedded
-//! in the binary by the `dejavu` crate (no system fonts, no fontconfig). SVG keeps text as
-//! `<text>` elements. PNG files are encoded with the `png` crate from plotters' RGB buffer.
+//! in the binary and registered by skyframe-figure-output (no system fonts, no fontconfig).
+//! SVG keeps text as `<text>` elements. PNG files are encoded there too, from plotters' RGB
+//! buffer.
 
-use std::fs::File;
-use std::io::BufWriter;
 use std::path::Path;
-use std::sync::Once;
 
 use plotters::coord::Shift;
 use plotters::prelude::*;
+use skyframe_figure_output::{FONT, register_font, write_png};
 
 /// How a series is drawn.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -70,7 +69,6 @@ impl ImageFormat {
     }
 }
 
-const FONT: &str = "sans-serif";
 /// The largest magnitude an axis extends to.
 const MAX_AXIS: f64 = 1e300;
 /// The shortest panel drawn: a figure keeps its first panels that fit.
@@ -91,16 +89,6 @@ const COLOURS: [RGBColor; 8] = [
     RGBColor(227, 119, 194),
     RGBColor(23, 190, 207),
 ];
-
-fn register_font() -> Result<(), String> {
-    static REGISTER: Once = Once::new();
-    let mut result = Ok(());
-    REGISTER.call_once(|| {
-        result = plotters::style::register_font(FONT, FontStyle::Normal, dejavu::sans::regular())
-            .map_err(|_| "the embedded font could not be loaded".to_string());
-    });
-    result
-}
 
 /// How many panels a figure of `size` draws: each at least [`MIN_PANEL_HEIGHT`] pixels high
 /// (minus the title's room).
@@ -134,16 +122,6 @@ pub fn render(figure: &Figure, path: &Path, size: (u32, u32)) -> Result<(), Stri
             write_png(path, size, &rgb).map_err(fail)
         }
     }
-}
-
-fn write_png(path: &Path, (w, h): (u32, u32), rgb: &[u8]) -> Result<(), String> {
-    let file = File::create(path).map_err(|e| e.to_string())?;
-    let mut encoder = png::Encoder::new(BufWriter::new(file), w, h);
-    encoder.set_color(png::ColorType::Rgb);
-    encoder.set_depth(png::BitDepth::Eight);
-    let mut writer = encoder.write_header().map_err(|e| e.to_string())?;
-    writer.write_image_data(rgb).map_err(|e| e.to_string())?;
-    writer.finish().map_err(|e| e.to_string())
 }
 
 /// Finite (min, max) of some values; `None` when none is finite.

@@ -2,21 +2,18 @@
 //! `exec_vs_budget` (execution-time box per task with its budget), `worst_frames` (timeline
 //! of the worst frames' tasks).
 //!
-//! Drawn as skyframe-log draws: plotters' bitmap backend (encoded with `png`) and SVG
-//! backend, text through ab_glyph with the DejaVu Sans font embedded by the `dejavu` crate.
+//! Drawn as skyframe-log draws: plotters' bitmap and SVG backends, with the embedded font and
+//! the PNG encoding of skyframe-figure-output.
 
-use std::fs::File;
-use std::io::BufWriter;
 use std::path::Path;
-use std::sync::Once;
 
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use skyframe_core::executive::FrameRecord;
+use skyframe_figure_output::{FONT, register_font, write_png};
 
 use crate::report::{self, Report};
 
-const FONT: &str = "sans-serif";
 const SIZE: (u32, u32) = (1000, 600);
 
 const PALETTE: [RGBColor; 10] = [
@@ -45,16 +42,6 @@ fn category_label(names: &[String], at: f64) -> String {
 
 fn colour(i: usize) -> RGBColor {
     PALETTE.get(i % PALETTE.len()).copied().unwrap_or(BLACK)
-}
-
-fn register_font() -> Result<(), String> {
-    static REGISTER: Once = Once::new();
-    let mut result = Ok(());
-    REGISTER.call_once(|| {
-        result = plotters::style::register_font(FONT, FontStyle::Normal, dejavu::sans::regular())
-            .map_err(|_| "the embedded font could not be loaded".to_string());
-    });
-    result
 }
 
 #[derive(Clone, Copy)]
@@ -107,16 +94,6 @@ pub fn draw_all(
         write_png(&png, SIZE, &rgb).map_err(|e| fail(&png, e))?;
     }
     Ok(())
-}
-
-fn write_png(path: &Path, (w, h): (u32, u32), rgb: &[u8]) -> Result<(), String> {
-    let file = File::create(path).map_err(|e| e.to_string())?;
-    let mut encoder = png::Encoder::new(BufWriter::new(file), w, h);
-    encoder.set_color(png::ColorType::Rgb);
-    encoder.set_depth(png::BitDepth::Eight);
-    let mut writer = encoder.write_header().map_err(|e| e.to_string())?;
-    writer.write_image_data(rgb).map_err(|e| e.to_string())?;
-    writer.finish().map_err(|e| e.to_string())
 }
 
 fn draw<DB: DrawingBackend>(
