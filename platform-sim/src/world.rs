@@ -11,7 +11,7 @@
 
 use crate::pilot::SwitchPosition;
 use crate::plant::sensors::{GpsFixType, GpsSample};
-use crate::plant::{ActuatorCommands, Plant, Truth};
+use crate::plant::{ActuatorCommands, GeodeticPosition, Plant, Truth};
 pub use crate::scenario::Device;
 use crate::scenario::{Fault, FaultKind, Scenario, ScenarioPilot};
 use crate::servo_board::{OutputSource, PilotInput, ServoBoard};
@@ -169,6 +169,11 @@ impl SimWorld {
 
     pub fn truth(&self) -> Truth {
         self.plant.truth()
+    }
+
+    /// Where the truth's NED positions are measured from (the GPS model's home).
+    pub fn origin(&self) -> GeodeticPosition {
+        self.plant.config().gps.home
     }
 
     pub fn time_ns(&self) -> u64 {

@@ -431,11 +431,7 @@ fn run<P: Platform>(platform: &P, command: Command) -> Result<ExitCode, String> 
             if !args.score {
                 return print_flight(&report, flight.json);
             }
-            let score = score_and_keep(
-                &report.flight_dir,
-                scenario.plant_config().gps.home,
-                !args.no_reference_filters,
-            )?;
+            let score = score_and_keep(&report.flight_dir, !args.no_reference_filters)?;
             if flight.json {
                 let mut value = serde_json::to_value(&report).map_err(|e| e.to_string())?;
                 if let serde_json::Value::Object(map) = &mut value {
@@ -459,9 +455,7 @@ fn run<P: Platform>(platform: &P, command: Command) -> Result<ExitCode, String> 
                     args.flight_dir.display()
                 ));
             }
-            // Scenarios do not move the simulator's origin, so every flight shares it.
-            let origin = skyframe_sim::plant::GeodeticPosition::default();
-            let score = score_and_keep(&args.flight_dir, origin, !args.no_reference_filters)?;
+            let score = score_and_keep(&args.flight_dir, !args.no_reference_filters)?;
             if args.json {
                 let text = serde_json::to_string_pretty(&score).map_err(|e| e.to_string())?;
                 println!("{text}");
@@ -534,7 +528,6 @@ fn print_flight(report: &FlightReport, json: bool) -> Result<ExitCode, String> {
 /// keeps its score.
 fn score_and_keep(
     flight_dir: &Path,
-    truth_origin: skyframe_sim::plant::GeodeticPosition,
     reference_filters: bool,
 ) -> Result<crate::score::Score, String> {
     let estimator_budget_ns = SHIPPED
@@ -544,7 +537,6 @@ fn score_and_keep(
         .map_or(0, |t| t.budget_ns);
     let score = crate::score::score_flight(&crate::score::ScoreSetup {
         flight_dir,
-        truth_origin,
         estimator_budget_ns,
         reference_filters,
     })

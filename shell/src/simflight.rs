@@ -6,10 +6,10 @@ use crate::logwriter::LogStream;
 use crate::platform::{Platform, RtConfig, RtReport};
 use crate::serial::{DevicePort, RX_RING, TX_RING};
 use skyframe_core::logfmt::record::{
-    DataBlockWriter, LogFormat, MAX_RECORD_LEN, encode_begin_data, encode_end_data,
+    DataBlockWriter, EncodeError, LogFormat, MAX_RECORD_LEN, encode_begin_data, encode_end_data,
 };
 use skyframe_sim::VirtualClock;
-use skyframe_sim::plant::Truth;
+use skyframe_sim::plant::{GeodeticPosition, Truth};
 use skyframe_sim::timer::SimTimer;
 use skyframe_sim::world::{Device, DeviceLink, SimWorld};
 use std::sync::Mutex;
@@ -20,6 +20,14 @@ pub const TRUTH_LOG: LogFormat = LogFormat::new(
     "north_m,east_m,down_m,vn_m_s,ve_m_s,vd_m_s,roll_rad,pitch_rad,yaw_rad,p_rad_s,q_rad_s,\
      r_rad_s,airspeed_m_s,alpha_rad,beta_rad,wind_n_m_s,wind_e_m_s,wind_d_m_s,on_ground",
 );
+/// Where truth positions are measured from, once after each Begin Data: scoring needs it to
+/// place the estimates, whose origin is their first GPS fix.
+pub const TRUTH_ORIGIN_LOG: LogFormat = LogFormat::new(
+    "%.8lf,%.8lf,%.3lf",
+    "origin_lat_deg,origin_lon_deg,origin_alt_m",
+);
+pub const TRUTH_INDEX: u8 = 1;
+pub const TRUTH_ORIGIN_INDEX: u8 = 2;
 /// Truth at 50 Hz: finer than the estimator's outputs need, coarse enough to stay small.
 pub const TRUTH_INTERVAL_NS: u64 = 20_000_000;
 
@@ -158,15 +166,33 @@ impl Drop for TruthLog {
     }
 }
 
-/// Encodes truth records into the truth stream.
-fn truth_tap(mut stream: LogStream, time_origin_ns: u64) -> skyframe_sim::timer::TruthTap {
+/// Encodes truth records into the truth stream, after the origin they are measured from.
+fn truth_tap(
+    mut stream: LogStream,
+    time_origin_ns: u64,
+    origin: GeodeticPosition,
+) -> skyframe_sim::timer::TruthTap {
     let format = TRUTH_LOG.parse().ok();
     let mut buf = vec![0u8; MAX_RECORD_LEN];
-    if let Ok(n) = TRUTH_LOG.encode_declaration(&mut buf, 1) {
-        stream.push_record(buf.get(..n).unwrap_or_default());
+    fn push(stream: &mut LogStream, encoded: Result<usize, EncodeError>, buf: &[u8]) {
+        if let Ok(n) = encoded {
+            stream.push_record(buf.get(..n).unwrap_or_default());
+        }
     }
-    if let Ok(n) = encode_begin_data(&mut buf, time_origin_ns) {
-        stream.push_record(buf.get(..n).unwrap_or_default());
+    let encoded = TRUTH_LOG.encode_declaration(&mut buf, TRUTH_INDEX);
+    push(&mut stream, encoded, &buf);
+    let encoded = TRUTH_ORIGIN_LOG.encode_declaration(&mut buf, TRUTH_ORIGIN_INDEX);
+    push(&mut stream, encoded, &buf);
+    let encoded = encode_begin_data(&mut buf, time_origin_ns);
+    push(&mut stream, encoded, &buf);
+    if let Ok(origin_format) = TRUTH_ORIGIN_LOG.parse() {
+        let encoded =
+            DataBlockWriter::new(&mut buf, TRUTH_ORIGIN_INDEX, time_origin_ns, &origin_format)
+                .f64(origin.lat_deg)
+                .f64(origin.lon_deg)
+                .f64(origin.alt_msl_m)
+                .finish();
+        push(&mut stream, encoded, &buf);
     }
     let mut log = TruthLog {
         stream,
@@ -185,7 +211,7 @@ fn truth_tap(mut stream: LogStream, time_origin_ns: u64) -> skyframe_sim::timer:
         let [p, q, r] = truth.rates_body_radps;
         let [wn, we, wd] = truth.wind_ned_mps;
         let f = |x: f64| x as f32;
-        let written = DataBlockWriter::new(buf, 1, time_origin_ns + t_ns, format)
+        let written = DataBlockWriter::new(buf, TRUTH_INDEX, time_origin_ns + t_ns, format)
             .f64(n)
             .f64(e)
             .f64(d)
@@ -232,11 +258,13 @@ impl<P: Platform> Platform for SimPlatform<'_, P> {
         let inner = self.host.timer();
         match taken {
             Some((world, link, truth)) => {
+                let origin = world.origin();
                 let timer = SimTimer::new(inner, world, link);
                 match truth {
-                    Some(stream) => {
-                        timer.with_truth(TRUTH_INTERVAL_NS, truth_tap(stream, self.time_origin_ns))
-                    }
+                    Some(stream) => timer.with_truth(
+                        TRUTH_INTERVAL_NS,
+                        truth_tap(stream, self.time_origin_ns, origin),
+                    ),
                     None => timer,
                 }
             }

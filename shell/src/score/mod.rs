@@ -33,8 +33,6 @@ use truth::{TruthSeries, wrap_pi};
 /// What scoring needs besides the flight directory.
 pub struct ScoreSetup<'a> {
     pub flight_dir: &'a Path,
-    /// The simulator's NED origin: `truth.bin` positions are metres from here.
-    pub truth_origin: GeodeticPosition,
     /// The estimator task's budget in the schedule.
     pub estimator_budget_ns: u64,
     /// Run the `ahrs` package's filters on the same IMU data (needs python3 with ahrs).
@@ -264,6 +262,7 @@ fn score_logs(setup: &ScoreSetup<'_>) -> Result<Score, String> {
     if truth.is_empty() {
         return Err("truth.bin holds no samples".into());
     }
+    let truth_origin = truth_origin(&logs.truth)?;
     // gps.bin read once: the estimator's home, the GPS's own error and the replay use it.
     let fixes = replay::gps_fixes(table(&logs.gps, "GPS")?)?;
     let imu = table(&logs.imu, "IMU")?;
@@ -272,13 +271,13 @@ fn score_logs(setup: &ScoreSetup<'_>) -> Result<Score, String> {
         .ok_or_else(|| format!("the first GPS fix is not a plausible home: {home:?}"))?;
     let estimator = table(&logs.estimator, "estimate")?;
     let (window, attitude, position_error) =
-        score_estimates(estimator, &truth, &frame, &setup.truth_origin)?;
-    let position = score_gps(&fixes, &truth, &setup.truth_origin, window, position_error);
+        score_estimates(estimator, &truth, &frame, &truth_origin)?;
+    let position = score_gps(&fixes, &truth, &truth_origin, window, position_error);
     let control = score_control(
         table(&logs.control, "control")?,
         &truth,
         home.altitude_m,
-        setup.truth_origin.alt_msl_m,
+        truth_origin.alt_msl_m,
     )?;
     let estimator_step = replay::time_estimator(imu, &fixes, setup.estimator_budget_ns)?;
     let reference_filters = if setup.reference_filters {
@@ -337,6 +336,27 @@ fn target(name: &'static str, value: f64, limit: f64) -> Target {
         limit,
         // NaN (nothing measured) is not a target met.
         met: value <= limit,
+    }
+}
+
+/// Where `truth.bin` positions are measured from (its format 2). Flights logged before the
+/// origin was written all used the simulator's default home.
+fn truth_origin(truth: &Stream) -> Result<GeodeticPosition, String> {
+    let Some(origins) = truth.table(2) else {
+        return Ok(GeodeticPosition::default());
+    };
+    let first = |name| column(origins, "truth", name).map(|c| c.first().copied());
+    match (
+        first("origin_lat_deg")?,
+        first("origin_lon_deg")?,
+        first("origin_alt_m")?,
+    ) {
+        (Some(lat_deg), Some(lon_deg), Some(alt_msl_m)) => Ok(GeodeticPosition {
+            lat_deg,
+            lon_deg,
+            alt_msl_m,
+        }),
+        _ => Err("truth.bin has an empty origin record".into()),
     }
 }
 
@@ -762,7 +782,6 @@ mod tests {
         std::fs::create_dir_all(&dir).expect("dir");
         let e = score_flight(&ScoreSetup {
             flight_dir: &dir,
-            truth_origin: GeodeticPosition::default(),
             estimator_budget_ns: 1,
             reference_filters: false,
         })
