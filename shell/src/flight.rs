@@ -30,9 +30,8 @@ use skyframe_core::tasks::health::HealthTask;
 use skyframe_core::tasks::imu::ImuTask;
 use skyframe_core::tasks::logging::LoggingTask;
 use skyframe_core::tasks::servo::{ComputerCommand, PilotInput, ServoTask};
-use skyframe_core::tasks::telemetry::{
-    LinkShared, Tap, TappedSink, TelemetryConfig, TelemetryTask,
-};
+use skyframe_core::tasks::tap::{Tap, TappedSink};
+use skyframe_core::tasks::telemetry::{LinkShared, TelemetryConfig, TelemetryTask};
 use skyframe_sim::world::SimWorld;
 use std::cell::{Cell, RefCell};
 use std::path::{Path, PathBuf};
@@ -353,6 +352,7 @@ pub fn fly<P: Platform>(
 
     let health_period_ms = Cell::new(0u32);
     let mode_request = LatestSlot::new();
+    let active_mode = LatestSlot::new();
     // A loaded mission is what the researcher wants flown when the pilot hands over; the
     // ground station can still request Stabilise or Manual at any time.
     if plan.mission.is_some() {
@@ -396,6 +396,7 @@ pub fn fly<P: Platform>(
             &params,
             &servo_commands,
         )
+        .publishing_mode(&active_mode)
     });
     let mut watchdog = HealthTask::new(&watchdog_out).with_period(&health_period_ms);
     let mut logging = LoggingTask::new(
@@ -468,6 +469,7 @@ pub fn fly<P: Platform>(
                 taps: &taps,
                 params: &params,
                 mode_request: &mode_request,
+                active_mode: &active_mode,
                 horizon: &horizon,
                 watchdog: &watchdog_out,
                 health_period_ms: &health_period_ms,

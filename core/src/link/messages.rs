@@ -8,6 +8,7 @@
 use super::auth::LinkCounters;
 use super::wire::{Reader, WireError, Writer};
 use crate::executive::FrameStats;
+use crate::logfmt::record::{TIME_LEN, Time};
 use heapless::Vec;
 
 /// Longest name of a parameter or a task on the wire.
@@ -256,6 +257,9 @@ pub struct TaskData {
     pub task_index: u8,
     /// Which of the task's formats (the log format index, where the task logs).
     pub format_index: u8,
+    /// The TIME of the log record these values come from (`log-format.md`), so the ground
+    /// can find the same record in the flight's log.
+    pub time: Time,
     pub values: Vec<Value, MAX_TASK_VALUES>,
 }
 
@@ -541,6 +545,10 @@ impl Telemetry {
             Telemetry::TaskData(m) => {
                 w.u8(m.task_index)?;
                 w.u8(m.format_index)?;
+                if !m.time.is_valid() {
+                    return Err(WireError::Invalid);
+                }
+                w.bytes(&m.time.to_bytes())?;
                 w.u8(u8::try_from(m.values.len()).map_err(|_| WireError::Invalid)?)?;
                 m.values.iter().try_for_each(|v| v.encode(w))
             }
@@ -624,6 +632,10 @@ impl Telemetry {
             t::TASK_DATA => {
                 let task_index = r.u8()?;
                 let format_index = r.u8()?;
+                let time = Time::from_bytes(r.array::<TIME_LEN>()?);
+                if !time.is_valid() {
+                    return Err(WireError::Invalid);
+                }
                 let count = r.u8()?;
                 let mut values = Vec::new();
                 for _ in 0..count {
@@ -634,6 +646,7 @@ impl Telemetry {
                 Telemetry::TaskData(TaskData {
                     task_index,
                     format_index,
+                    time,
                     values,
                 })
             }

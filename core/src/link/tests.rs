@@ -8,6 +8,7 @@ use super::frame::{CRC_LEN, HEADER_LEN, TAG_LEN, crc32};
 use super::messages::*;
 use super::*;
 use crate::executive::FrameStats;
+use crate::logfmt::Time;
 use proptest::prelude::*;
 use std::vec::Vec as StdVec;
 
@@ -79,9 +80,9 @@ fn with_crc_fixed(mut d: StdVec<u8>) -> StdVec<u8> {
 // Worked examples (docs/link-protocol.md, "Worked examples"): checked byte for byte.
 
 const EXAMPLE_TASK_DATA: &str = "
-    534b5946 01 00 01 00 0700 1200 78563412 01000000 00ca9a3b00000000
-    00 01 03 04 0000803e 04 0000c0bf 02 fdffffff
-    46855e47";
+    534b5946 01 00 01 00 0700 1a00 78563412 01000000 00ca9a3b00000000
+    00 01 00000000 009d693a 03 04 0000803e 04 0000c0bf 02 fdffffff
+    d697205e";
 
 const EXAMPLE_SET_PARAM: &str = "
     534b5946 01 01 83 01 0700 0f00 78563412 2a000000 00f2052a01000000
@@ -106,6 +107,10 @@ fn example_task_data() -> (Envelope, Message) {
         Message::Telemetry(Telemetry::TaskData(TaskData {
             task_index: 0,
             format_index: 1,
+            time: Time {
+                sec: 0,
+                nsec: 980_000_000,
+            },
             values: heapless::Vec::from_slice(&[
                 Value::F32(0.25),
                 Value::F32(-1.5),
@@ -348,12 +353,15 @@ fn any_telemetry() -> impl Strategy<Value = Telemetry> {
         (
             any::<u8>(),
             any::<u8>(),
+            any::<i32>(),
+            0..1_000_000_000u32,
             proptest::collection::vec(any_value(), 0..=MAX_TASK_VALUES)
         )
-            .prop_map(|(task_index, format_index, values)| {
+            .prop_map(|(task_index, format_index, sec, nsec, values)| {
                 Telemetry::TaskData(TaskData {
                     task_index,
                     format_index,
+                    time: Time { sec, nsec },
                     values: heapless::Vec::from_slice(&values).expect("fits"),
                 })
             }),
@@ -557,6 +565,7 @@ fn the_largest_messages_fit_one_datagram() {
     let big_data = Message::Telemetry(Telemetry::TaskData(TaskData {
         task_index: 0,
         format_index: 0,
+        time: Time::default(),
         values: heapless::Vec::from_slice(&[Value::F64(0.0); MAX_TASK_VALUES]).expect("fits"),
     }));
     let big_format = Message::Telemetry(Telemetry::TaskFormat(TaskFormat {

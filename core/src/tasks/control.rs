@@ -23,7 +23,7 @@ use crate::control::mode::{ModeDecision, ModeInputs, decide};
 use crate::control::pid::PidGains;
 use crate::estimation::Estimate;
 use crate::executive::{Task, TaskContext, TaskFault};
-use crate::link::messages::{FlightMode, MAX_TASK_VALUES, TaskData, Value};
+use crate::link::messages::{FlightMode, Value};
 use crate::link::params::{DefineError, ParamTable};
 use crate::logfmt::format::Format;
 use crate::logfmt::record::LogFormat;
@@ -227,6 +227,8 @@ pub struct ControlTask<'a, S: RecordSink> {
     params: &'a RefCell<ParamTable>,
     out: &'a LatestSlot<ComputerCommand>,
     last_mode: FlightMode,
+    /// Where the mode flown is published for the link (`None`: nobody asks).
+    mode_out: Option<&'a LatestSlot<FlightMode>>,
     last_ns: Option<u64>,
     gains_logged: bool,
     last: Option<ControlStep>,
@@ -261,10 +263,17 @@ impl<'a, S: RecordSink> ControlTask<'a, S> {
             params,
             out,
             last_mode: FlightMode::Manual,
+            mode_out: None,
             last_ns: None,
             gains_logged: false,
             last: None,
         }
+    }
+
+    /// Publishes the mode flown at every step into `slot` (the link reports it).
+    pub fn publishing_mode(mut self, slot: &'a LatestSlot<FlightMode>) -> Self {
+        self.mode_out = Some(slot);
+        self
     }
 
     pub fn last_step(&self) -> Option<&ControlStep> {
@@ -273,35 +282,6 @@ impl<'a, S: RecordSink> ControlTask<'a, S> {
 
     pub fn settings(&self) -> &ControlSettings {
         &self.settings
-    }
-
-    /// The last step as the link's [`TaskData`] (format 1's columns, without the sticks).
-    pub fn task_data(&self, task_index: u8) -> Option<TaskData> {
-        let s = self.last?;
-        let mut values: heapless::Vec<Value, MAX_TASK_VALUES> = heapless::Vec::new();
-        let c = s.command.controls;
-        let t = s.targets;
-        for v in [
-            Value::U32(u32::from(s.decision.mode as u8)),
-            Value::U32(u32::from(s.decision.reason as u8)),
-            Value::F32(t.roll_rad),
-            Value::F32(t.pitch_rad),
-            Value::F32(t.course_rad),
-            Value::F32(t.altitude_m),
-            Value::F32(t.airspeed_mps),
-            Value::F32(c.aileron),
-            Value::F32(c.elevator),
-            Value::F32(c.throttle),
-            Value::F32(c.rudder),
-            Value::Bool(s.command.ready),
-        ] {
-            values.push(v).ok()?;
-        }
-        Some(TaskData {
-            task_index,
-            format_index: CONTROL_INDEX,
-            values,
-        })
     }
 
     /// Reads the gains; logs them if they changed (or were never logged).
@@ -351,6 +331,9 @@ impl<'a, S: RecordSink> ControlTask<'a, S> {
             self.hold = None;
         }
         self.last_mode = decision.mode;
+        if let Some(slot) = self.mode_out {
+            slot.publish(decision.mode);
+        }
         let mut targets = Targets::default();
         let mut waypoint = u8::MAX;
         let command = match (decision.mode, fresh_estimate) {

@@ -15,7 +15,7 @@ use crate::devices::gps::GpsFix;
 use crate::devices::imu::ImuSample;
 use crate::estimation::{Estimate, Estimator, EstimatorConfig, HealthReason, Phase};
 use crate::executive::{Task, TaskContext, TaskFault};
-use crate::link::messages::{HorizonAttitude, MAX_TASK_VALUES, TaskData, Value};
+use crate::link::messages::HorizonAttitude;
 use crate::logfmt::format::Format;
 use crate::logfmt::record::LogFormat;
 
@@ -98,28 +98,6 @@ impl<'a, S: RecordSink> EstimatorTask<'a, S> {
     /// Steps that found no fresh IMU sample.
     pub fn imu_missed(&self) -> u32 {
         self.imu_missed
-    }
-
-    /// The latest estimate as the link's [`TaskData`] (format 1's columns).
-    pub fn task_data(&self, task_index: u8) -> Option<TaskData> {
-        let e = self.last?;
-        let mut values: heapless::Vec<Value, MAX_TASK_VALUES> = heapless::Vec::new();
-        let floats = [e.roll_rad, e.pitch_rad, e.yaw_rad]
-            .into_iter()
-            .chain(e.quaternion)
-            .chain(e.velocity_ned_mps)
-            .chain(e.position_ned_m)
-            .chain(e.gyro_bias_radps)
-            .chain(e.accel_bias_mps2);
-        for v in floats {
-            values.push(Value::F32(v)).ok()?;
-        }
-        values.push(Value::Bool(e.health.healthy)).ok()?;
-        Some(TaskData {
-            task_index,
-            format_index: STATE_INDEX,
-            values,
-        })
     }
 
     fn take_imu(&mut self) {

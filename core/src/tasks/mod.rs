@@ -2,8 +2,8 @@
 //! each, following the data: device tasks (`imu`, `gps`, `servo`) turn bytes into frames,
 //! publish them in latest-value slots and log them; `health` watches everyone; `logging`
 //! snapshots health; `estimator` turns IMU, GPS and horizon into an estimate; `control`
-//! turns the estimate, the pilot and the mission into servo commands. Telemetry arrives with
-//! its issue; until then the shell fills its slot with an idle task.
+//! turns the estimate, the pilot and the mission into servo commands; `telemetry` is the
+//! vehicle's end of the link, and `tap` hands it each task's latest logged records.
 
 pub mod control;
 pub mod device_status;
@@ -13,6 +13,7 @@ pub mod health;
 pub mod imu;
 pub mod logging;
 pub mod servo;
+pub mod tap;
 pub mod task_log;
 pub mod telemetry;
 

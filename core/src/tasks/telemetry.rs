@@ -10,23 +10,25 @@
 //! [`OVERRUN_REPORT_INTERVAL_NS`] while a burst lasts, so a burst of slips never floods the
 //! link and the ground still sees it within a second.
 //!
-//! A task's data is its latest log record: each task's log sink is wrapped in a
-//! [`TappedSink`], which passes every record on to the log and keeps the latest data block
-//! (and the formats) for telemetry. So telemetry shows exactly what is logged, with the
-//! same column names, and no task has to know about the link.
+//! A task's data is its latest log record of each format: each task's log sink is wrapped
+//! in a [`TappedSink`](super::tap::TappedSink), which passes every record on to the log and
+//! keeps the latest data block (and the formats) for telemetry. So telemetry shows exactly
+//! what is logged, with the same column names and time stamps, and no task has to know about
+//! the link. Each task's column names are re-sent every
+//! [`TASK_FORMAT_INTERVAL_MS`](crate::link::telemetry::TASK_FORMAT_INTERVAL_MS) with its
+//! latest values, so a ground that joins late has them within that time.
 
-use crate::comm::{LatestSlot, RecordSink};
+use super::tap::Tap;
+use crate::comm::LatestSlot;
 use crate::executive::{Task, TaskContext, TaskFault};
 use crate::link::auth::{CommandGate, GateConfig, LinkKey};
 use crate::link::frame::{Envelope, MAX_DATAGRAM_LEN, encode_datagram};
 use crate::link::messages::{
-    AckResult, Command, CommandAck, ExecutiveStatus, FlightMode, HorizonAttitude, MAX_TASK_VALUES,
-    Message, Name, TaskData, TaskFormat, TaskStatus, Telemetry, Value,
+    AckResult, Command, CommandAck, ExecutiveStatus, FlightMode, HorizonAttitude, Message, Name,
+    TaskData, TaskFormat, TaskStatus, Telemetry, Value,
 };
 use crate::link::params::{ParamTable, SetParamResult};
 use crate::link::telemetry::{Due, TelemetrySchedule, VehicleEnvelopes};
-use crate::logfmt::format::Format;
-use crate::logfmt::printf;
 use crate::schedule::FrameTable;
 use crate::schedule::analysis::MAX_TASKS;
 use crate::tasks::health::WatchdogReport;
@@ -42,150 +44,14 @@ pub trait DatagramPort {
     fn send(&mut self, datagram: &[u8], reply: bool) -> bool;
 }
 
-/// Longest data block a tap keeps (the widest shipped format is ~80 bytes).
-pub const TAP_DATA: usize = 192;
-/// Longest format text or column list a tap keeps.
-pub const TAP_TEXT: usize = 256;
-/// Format indices a tap follows per task.
-const TAP_FORMATS: usize = 4;
-
-#[derive(Clone, Debug)]
-struct TapFormat {
-    index: u8,
-    text: heapless::String<TAP_TEXT>,
-    columns: heapless::Vec<u8, TAP_TEXT>,
-}
-
-/// The latest data of one task, as it went to its log.
-#[derive(Default)]
-pub struct Tap {
-    formats: RefCell<heapless::Vec<TapFormat, TAP_FORMATS>>,
-    latest: RefCell<Option<(u8, heapless::Vec<u8, TAP_DATA>)>>,
-    sequence: Cell<u32>,
-}
-
-impl Tap {
-    pub const fn new() -> Self {
-        Self {
-            formats: RefCell::new(heapless::Vec::new()),
-            latest: RefCell::new(None),
-            sequence: Cell::new(0),
-        }
-    }
-
-    fn take_record(&self, record: &[u8]) {
-        let (Some(&kind), Some(&index)) = (record.first(), record.get(1)) else {
-            return;
-        };
-        let body = record.get(4..).unwrap_or_default();
-        match kind {
-            0xFD | 0xFC => {
-                let Ok(mut formats) = self.formats.try_borrow_mut() else {
-                    return;
-                };
-                let at = match formats.iter().position(|f| f.index == index) {
-                    Some(at) => at,
-                    None => {
-                        let fresh = TapFormat {
-                            index,
-                            text: heapless::String::new(),
-                            columns: heapless::Vec::new(),
-                        };
-                        if formats.push(fresh).is_err() {
-                            return;
-                        }
-                        formats.len() - 1
-                    }
-                };
-                if let Some(f) = formats.get_mut(at) {
-                    let text = crate::logfmt::format::trim_nuls(body);
-                    if kind == 0xFD {
-                        f.text.clear();
-                        let _ = f.text.push_str(core::str::from_utf8(text).unwrap_or(""));
-                    } else {
-                        f.columns.clear();
-                        let _ = f
-                            .columns
-                            .extend_from_slice(text.get(..TAP_TEXT).unwrap_or(text));
-                    }
-                }
-            }
-            0xDB => {
-                let data = record.get(12..).unwrap_or_default();
-                let mut kept = heapless::Vec::new();
-                if kept.extend_from_slice(data).is_ok()
-                    && let Ok(mut latest) = self.latest.try_borrow_mut()
-                {
-                    *latest = Some((index, kept));
-                    self.sequence.set(self.sequence.get().wrapping_add(1));
-                }
-            }
-            _ => {}
-        }
-    }
-
-    /// The latest record as link values, with its format index.
-    fn data(&self) -> Option<(u8, heapless::Vec<Value, MAX_TASK_VALUES>)> {
-        let latest = self.latest.try_borrow().ok()?;
-        let (index, data) = latest.as_ref()?;
-        let formats = self.formats.try_borrow().ok()?;
-        let text = &formats.iter().find(|f| f.index == *index)?.text;
-        let format = Format::parse(text).ok()?;
-        let mut values = heapless::Vec::new();
-        let mut at = 0usize;
-        for field in format.fields() {
-            let size = field.ty.size();
-            let bytes = data.get(at..at.checked_add(size)?)?;
-            at += size;
-            let value = match printf::Value::decode(field.ty, bytes)? {
-                printf::Value::I8(v) => Value::I32(i32::from(v)),
-                printf::Value::U8(v) => Value::U32(u32::from(v)),
-                printf::Value::I16(v) => Value::I32(i32::from(v)),
-                printf::Value::U16(v) => Value::U32(u32::from(v)),
-                printf::Value::I32(v) => Value::I32(v),
-                printf::Value::U32(v) => Value::U32(v),
-                printf::Value::I64(v) => Value::F64(v as f64),
-                printf::Value::U64(v) => Value::F64(v as f64),
-                printf::Value::F32(v) => Value::F32(v),
-                printf::Value::F64(v) => Value::F64(v),
-            };
-            if values.push(value).is_err() {
-                break;
-            }
-        }
-        Some((*index, values))
-    }
-
-    /// The column names of the format whose data is sent.
-    fn columns(&self) -> Option<(u8, heapless::Vec<u8, 255>)> {
-        let index = self.latest.try_borrow().ok()?.as_ref()?.0;
-        let formats = self.formats.try_borrow().ok()?;
-        let f = formats.iter().find(|f| f.index == index)?;
-        let mut out = heapless::Vec::new();
-        let _ = out.extend_from_slice(f.columns.get(..255).unwrap_or(&f.columns));
-        Some((index, out))
-    }
-}
-
-/// A task's log sink that also keeps the task's latest data for telemetry.
-pub struct TappedSink<'a, S> {
-    pub inner: S,
-    pub tap: &'a Tap,
-}
-
-impl<S: RecordSink> RecordSink for TappedSink<'_, S> {
-    fn push_record(&mut self, record: &[u8]) -> bool {
-        self.tap.take_record(record);
-        self.inner.push_record(record)
-    }
-}
-
 /// What the telemetry task shares with the rest of the vehicle.
 pub struct LinkShared<'a> {
     /// One tap per task slot (`None`: the task logs nothing to show).
     pub taps: &'a [Option<&'a Tap>],
     pub params: &'a RefCell<ParamTable>,
     pub mode_request: &'a LatestSlot<FlightMode>,
+    /// The mode the control task is flying in, as it last published it.
+    pub active_mode: &'a LatestSlot<FlightMode>,
     pub horizon: &'a LatestSlot<HorizonAttitude>,
     pub watchdog: &'a LatestSlot<WatchdogReport>,
     pub health_period_ms: &'a Cell<u32>,
@@ -458,47 +324,98 @@ impl<'a, P: DatagramPort> TelemetryTask<'a, P> {
         }
     }
 
+    fn tap(&self, task_index: u8) -> Option<&'a Tap> {
+        self.shared
+            .taps
+            .get(usize::from(task_index))
+            .copied()
+            .flatten()
+    }
+
+    /// Every format's column names of one task, each followed by its latest values (fresh or
+    /// not: a ground that joined late gets the whole picture, the gains logged once at start
+    /// included).
+    fn send_formats(&mut self, now: u64, task_index: u8) {
+        let Some(tap) = self.tap(task_index) else {
+            return;
+        };
+        for format_index in tap.format_indices() {
+            if let Some(columns) = tap.columns(format_index).filter(|c| !c.is_empty()) {
+                let format = TaskFormat {
+                    task_index,
+                    format_index,
+                    columns,
+                };
+                self.send(now, Telemetry::TaskFormat(format), false);
+            }
+        }
+        self.send_data(now, task_index, false);
+    }
+
+    /// The latest record of each of the task's formats (`only_fresh`: those logged since the
+    /// last send).
+    fn send_data(&mut self, now: u64, task_index: u8, only_fresh: bool) {
+        let Some(tap) = self.tap(task_index) else {
+            return;
+        };
+        for format_index in tap.format_indices() {
+            if let Some(record) = tap.take_latest(format_index, only_fresh) {
+                let data = TaskData {
+                    task_index,
+                    format_index: record.format_index,
+                    time: record.time,
+                    values: record.values,
+                };
+                self.send(now, Telemetry::TaskData(data), false);
+            }
+        }
+    }
+
+    /// The executive's status: the mode the control task flies in (not merely the last one
+    /// requested), and the watchdog's check period in force (its own frame period while the
+    /// ground has set none).
+    fn executive_status(&self, cx: &TaskContext<'_>) -> ExecutiveStatus {
+        let requested = self.shared.health_period_ms.get();
+        let health_period_ms = if requested > 0 {
+            requested
+        } else {
+            self.table
+                .tasks
+                .iter()
+                .find(|t| t.name == "health")
+                .map_or(0, |t| {
+                    u32::try_from(t.period_ns / 1_000_000).unwrap_or(u32::MAX)
+                })
+        };
+        ExecutiveStatus {
+            elapsed_ns: cx.now_ns,
+            duration_ns: self.config.duration_ns,
+            mode: self.shared.active_mode.peek().or(self.mode),
+            task_count: self.table.tasks.len() as u8,
+            health_period_ms,
+            frames: cx.health.frames,
+            link: *self.gate.counters(),
+        }
+    }
+
     fn send_due(&mut self, cx: &TaskContext<'_>) {
         let now = cx.now_ns;
         for _ in 0..MAX_SENDS_PER_STEP {
             let Some(due) = self.schedule.as_mut().and_then(|s| s.next_due(now)) else {
                 break;
             };
-            let tap = |task: u8| self.shared.taps.get(usize::from(task)).copied().flatten();
             let message = match due {
-                Due::ExecutiveStatus => Some(Telemetry::ExecutiveStatus(ExecutiveStatus {
-                    elapsed_ns: now,
-                    duration_ns: self.config.duration_ns,
-                    mode: self.mode,
-                    task_count: self.table.tasks.len() as u8,
-                    health_period_ms: self.shared.health_period_ms.get(),
-                    frames: cx.health.frames,
-                    link: *self.gate.counters(),
-                })),
+                Due::ExecutiveStatus => Some(Telemetry::ExecutiveStatus(self.executive_status(cx))),
                 Due::TaskStatus { task_index } => {
                     self.task_status(cx, task_index).map(Telemetry::TaskStatus)
                 }
                 Due::TaskFormat { task_index } => {
-                    tap(task_index)
-                        .and_then(Tap::columns)
-                        .map(|(format_index, columns)| {
-                            Telemetry::TaskFormat(TaskFormat {
-                                task_index,
-                                format_index,
-                                columns,
-                            })
-                        })
+                    self.send_formats(now, task_index);
+                    None
                 }
                 Due::TaskData { task_index } => {
-                    tap(task_index)
-                        .and_then(Tap::data)
-                        .map(|(format_index, values)| {
-                            Telemetry::TaskData(TaskData {
-                                task_index,
-                                format_index,
-                                values,
-                            })
-                        })
+                    self.send_data(now, task_index, true);
+                    None
                 }
             };
             if let Some(message) = message {
@@ -548,15 +465,7 @@ impl<P: DatagramPort> Task for TelemetryTask<'_, P> {
 
     fn shutdown(&mut self, cx: &mut TaskContext<'_>) {
         // Last word: the executive's final status, so the ground sees the run end.
-        let status = ExecutiveStatus {
-            elapsed_ns: cx.now_ns,
-            duration_ns: self.config.duration_ns,
-            mode: self.mode,
-            task_count: self.table.tasks.len() as u8,
-            health_period_ms: self.shared.health_period_ms.get(),
-            frames: cx.health.frames,
-            link: *self.gate.counters(),
-        };
+        let status = self.executive_status(cx);
         self.send(cx.now_ns, Telemetry::ExecutiveStatus(status), false);
     }
 }

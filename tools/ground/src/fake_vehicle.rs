@@ -12,6 +12,7 @@ use skyframe_core::link::messages::{
 };
 use skyframe_core::link::params::ParamTable;
 use skyframe_core::link::telemetry::{Due, TelemetrySchedule, VehicleEnvelopes};
+use skyframe_core::logfmt::Time;
 use std::io;
 use std::net::{SocketAddr, UdpSocket};
 use std::sync::Arc;
@@ -247,6 +248,7 @@ impl FakeVehicle {
                     let data = TaskData {
                         task_index,
                         format_index,
+                        time: Time::from_ns(now_ns).unwrap_or_default(),
                         values,
                     };
                     self.send(Telemetry::TaskData(data), now_ns, to);

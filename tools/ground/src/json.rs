@@ -58,6 +58,32 @@ fn task_name(model: &GroundModel, vehicle_id: u16, task_index: u8) -> Option<Str
         .map(str::to_string)
 }
 
+/// The unit a column's name ends in (`conventions.md`: units in the names), as a person
+/// writes it; `None` for a count, a flag or a name without a unit.
+pub fn column_unit(column: &str) -> Option<&'static str> {
+    // Longest suffixes first: `_m_s2` before `_m_s` before `_s`.
+    const UNITS: &[(&str, &str)] = &[
+        ("_rad_s", "rad/s"),
+        ("_m_s2", "m/s^2"),
+        ("_m_s", "m/s"),
+        ("_deg", "deg"),
+        ("_rad", "rad"),
+        ("_ns", "ns"),
+        ("_us", "us"),
+        ("_ms", "ms"),
+        ("_pct", "%"),
+        ("_ga", "Ga"),
+        ("_m", "m"),
+        ("_s", "s"),
+        ("_v", "V"),
+        ("_c", "degC"),
+    ];
+    UNITS
+        .iter()
+        .find(|(suffix, _)| column.ends_with(suffix))
+        .map(|&(_, unit)| unit)
+}
+
 fn column_names(model: &GroundModel, vehicle_id: u16, task: u8, format: u8) -> Vec<String> {
     model
         .vehicle(vehicle_id)
@@ -84,17 +110,33 @@ pub fn telemetry_fields(
                 put("task", json!(name));
             }
             put("format_index", json!(d.format_index));
+            // The record's log TIME: as seconds, and exactly as the CSV's time column.
             put(
-                "values",
-                Json::Array(d.values.iter().map(value_json).collect()),
+                "time",
+                json!(f64::from(d.time.sec) + f64::from(d.time.nsec) * 1e-9),
             );
+            put("log_time", json!(d.time.to_string()));
             let columns = column_names(model, vehicle_id, d.task_index, d.format_index);
-            if columns.len() == d.values.len() {
-                let named: Map<String, Json> = columns
-                    .into_iter()
-                    .zip(d.values.iter().map(value_json))
-                    .collect();
-                put("columns", Json::Object(named));
+            let known = columns.len() == d.values.len();
+            put("columns_known", json!(known));
+            let name = |i: usize| match columns.get(i) {
+                Some(c) if known => c.clone(),
+                _ => format!("c{i}"),
+            };
+            let values: Map<String, Json> = d
+                .values
+                .iter()
+                .enumerate()
+                .map(|(i, v)| (name(i), value_json(v)))
+                .collect();
+            put("values", Json::Object(values));
+            let units: Map<String, Json> = columns
+                .iter()
+                .filter(|_| known)
+                .filter_map(|c| column_unit(c).map(|u| (c.clone(), json!(u))))
+                .collect();
+            if !units.is_empty() {
+                put("units", Json::Object(units));
             }
         }
         Telemetry::TaskFormat(f) => {
@@ -191,6 +233,7 @@ fn envelope_fields(m: &mut Map<String, Json>, header: &Header) {
     m.insert("sender_id".into(), json!(e.sender_id));
     m.insert("run_id".into(), json!(e.run_id));
     m.insert("sequence".into(), json!(e.sequence));
+    m.insert("seq".into(), json!(e.sequence));
     m.insert("t_ns".into(), json!(e.t_ns));
     m.insert("signed".into(), json!(header.signed));
 }

@@ -6,6 +6,7 @@ use skyframe_core::link::frame::{FrameError, Header};
 use skyframe_core::link::messages::{
     CommandAck, ExecutiveStatus, ParamValue, TaskData, TaskFormat, TaskStatus, Telemetry, Value,
 };
+use skyframe_core::logfmt::Time;
 use std::collections::{BTreeMap, VecDeque};
 use std::net::SocketAddr;
 use std::time::{Duration, Instant};
@@ -37,6 +38,8 @@ pub struct FormatState {
     /// Empty until a TaskFormat arrives; data is kept meanwhile and shown as `c0, c1, …`.
     pub columns: Vec<String>,
     pub latest: Vec<Value>,
+    /// The log TIME of the latest values (the record they come from).
+    pub latest_time: Option<Time>,
     /// One ring per column, in column order, all of the same length.
     pub history: Vec<VecDeque<f64>>,
     pub records: u64,
@@ -70,7 +73,7 @@ impl FormatState {
         self.column_index(name).and_then(|i| self.history.get(i))
     }
 
-    fn record(&mut self, values: &[Value], history_len: usize) {
+    fn record(&mut self, time: Time, values: &[Value], history_len: usize) {
         if self.history.len() != values.len() {
             // The format changed shape (a new build of the vehicle): old history no longer
             // lines up with the columns.
@@ -83,6 +86,7 @@ impl FormatState {
             ring.push_back(value_as_f64(value));
         }
         self.latest = values.to_vec();
+        self.latest_time = Some(time);
         self.records = self.records.saturating_add(1);
     }
 }
@@ -447,7 +451,7 @@ impl GroundModel {
 fn apply_task_data(vehicle: &mut VehicleState, data: &TaskData, history_len: usize) {
     let task = vehicle.tasks.entry(data.task_index).or_default();
     let format = task.formats.entry(data.format_index).or_default();
-    format.record(&data.values, history_len);
+    format.record(data.time, &data.values, history_len);
 }
 
 fn apply_task_format(vehicle: &mut VehicleState, format: &TaskFormat) {
@@ -496,6 +500,7 @@ mod tests {
         Telemetry::TaskData(TaskData {
             task_index,
             format_index: 1,
+            time: Time::default(),
             values: v,
         })
     }

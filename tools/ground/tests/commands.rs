@@ -23,9 +23,18 @@ fn monitor_json_prints_one_object_per_message_with_named_columns() {
         .find(|o| o["type"] == "task_data" && o["task_index"] == 0)
         .expect("imu data");
     assert_eq!(imu["format_index"], 1);
-    assert_eq!(imu["values"].as_array().map(Vec::len), Some(8));
-    // The TaskFormat came first, so the values carry their column names.
-    assert!(imu["columns"]["fz_m_s2"].as_f64().is_some(), "{imu}");
+    assert_eq!(imu["task"], "imu");
+    // The TaskFormat came first, so the values are keyed by their column names, with units.
+    assert_eq!(imu["columns_known"], true, "{imu}");
+    assert_eq!(imu["values"].as_object().map(|v| v.len()), Some(8), "{imu}");
+    assert!(imu["values"]["fz_m_s2"].as_f64().is_some(), "{imu}");
+    assert_eq!(imu["units"]["fz_m_s2"], "m/s^2", "{imu}");
+    assert_eq!(imu["units"]["p_rad_s"], "rad/s", "{imu}");
+    assert!(imu["units"].get("counter").is_none(), "{imu}");
+    assert!(
+        imu["time"].as_f64().is_some() && imu["seq"].as_u64().is_some(),
+        "{imu}"
+    );
     for kind in ["task_format", "task_status", "executive_status"] {
         assert!(objects.iter().any(|o| o["type"] == kind), "no {kind}");
     }

@@ -8,6 +8,7 @@ use ratatui::backend::TestBackend;
 use ratatui::crossterm::event::{KeyCode, KeyEvent, KeyModifiers};
 use skyframe_core::link::frame::{Envelope, MAX_DATAGRAM_LEN, crc32, encode_datagram};
 use skyframe_core::link::messages::{Message, TaskData, TaskFormat, Telemetry, Value};
+use skyframe_core::logfmt::Time;
 use skyframe_ground::fake_vehicle::{TASKS, sample_task_status};
 use skyframe_ground::model::GroundModel;
 use skyframe_ground::net::{Received, decode};
@@ -120,6 +121,7 @@ proptest! {
             let data = TaskData {
                 task_index,
                 format_index,
+                time: Time::default(),
                 values: values.iter().copied().collect(),
             };
             send(&mut app, Telemetry::TaskData(data));

@@ -9,6 +9,7 @@ use skyframe_core::link::messages::{
     AckResult, Command, CommandAck, ExecutiveStatus, FlightMode, TaskData, TaskFormat, Telemetry,
     Value, message_type,
 };
+use skyframe_core::logfmt::Time;
 use skyframe_ground::fake_vehicle::{TASKS, sample_task_status, sample_values};
 use skyframe_ground::model::GroundModel;
 use skyframe_ground::net::{Incoming, Received};
@@ -78,6 +79,7 @@ impl Script {
                     let data = TaskData {
                         task_index: task_index as u8,
                         format_index,
+                        time: Time::from_ns(t_ns).expect("in range"),
                         values: sample_values(task_index as u8, format_index, t_ns),
                     };
                     self.send(vehicle_id, t_ns, Telemetry::TaskData(data));
