@@ -4,11 +4,18 @@
 use serde_json::Value;
 use skyframe_core::link::auth::LinkKey;
 use skyframe_core::link::frame::{Envelope, Verify, decode_datagram, encode_datagram};
-use skyframe_core::link::messages::{AckResult, Command, Message, Telemetry};
+use skyframe_core::link::messages::{
+    AckResult, Command, Message, TaskData, Telemetry, Value as LinkValue,
+};
+use skyframe_core::schedule::SHIPPED;
+use skyframe_logtable::{load_stream, time_ns};
 use skyframe_tests::{scratch, skyframe, to_csv};
+use std::collections::BTreeMap;
 use std::net::{SocketAddr, UdpSocket};
 use std::os::unix::fs::PermissionsExt;
 use std::process::Stdio;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 struct Ground {
@@ -270,4 +277,240 @@ fn a_burst_of_overruns_reaches_the_ground_at_once_and_throttled() {
     // The summary after the burst has them all.
     let last = imu.last().map_or(0, |(_, o)| *o);
     assert!(last >= 295, "{imu:?}");
+}
+
+/// The log stream a task writes (`docs/log-streams.md`); `None` for a task that logs nothing.
+fn stream_of(task: &str) -> Option<&'static str> {
+    match task {
+        "imu" => Some("imu"),
+        "gps" => Some("gps"),
+        "servo" => Some("servo"),
+        "estimator" => Some("estimator"),
+        "control" => Some("control"),
+        // The task "logging" snapshots every task's health; "health" is the watchdog.
+        "logging" => Some("health"),
+        "health" => Some("watchdog"),
+        "telemetry" => Some("link"),
+        _ => None,
+    }
+}
+
+fn shipped_task(index: u8) -> &'static str {
+    SHIPPED
+        .tasks
+        .get(usize::from(index))
+        .map_or("?", |slot| slot.name)
+}
+
+/// A value on the link as the log reader gives it (`skyframe_logtable::value_f64`).
+fn link_value_f64(value: &LinkValue) -> f64 {
+    match *value {
+        LinkValue::Bool(b) => f64::from(u8::from(b)),
+        LinkValue::I32(v) => f64::from(v),
+        LinkValue::U32(v) => f64::from(v),
+        LinkValue::F32(v) => f64::from(v),
+        LinkValue::F64(v) => v,
+    }
+}
+
+fn same(a: f64, b: f64) -> bool {
+    a == b || (a.is_nan() && b.is_nan())
+}
+
+/// The flight directory a `--json` run reported.
+fn flight_dir(stdout: &[u8]) -> std::path::PathBuf {
+    let report: Value = serde_json::from_slice(stdout).expect("JSON report");
+    report["flight_dir"].as_str().expect("flight_dir").into()
+}
+
+/// Every TaskData that arrived is the log record of the same task and format at the same TIME,
+/// value for value, and every task that logs sent some.
+#[test]
+fn every_task_sends_its_logged_values_and_they_equal_the_log() {
+    let dir = scratch("link-values");
+    write_key(&dir.join("link.key"), 0x5d);
+    let (mut socket, telemetry) = ground_socket();
+    let child = sim_on_link(&dir, telemetry, &["--duration", "8", "--json"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("skyframe sim");
+    let mut data: Vec<TaskData> = Vec::new();
+    let mut columns: BTreeMap<(u8, u8), String> = BTreeMap::new();
+    let start = Instant::now();
+    while start.elapsed() < Duration::from_secs(25) {
+        match receive(&mut socket) {
+            Some(Telemetry::TaskData(d)) => data.push(d),
+            Some(Telemetry::TaskFormat(f)) => {
+                let text = String::from_utf8_lossy(&f.columns).into_owned();
+                columns.insert((f.task_index, f.format_index), text);
+            }
+            Some(Telemetry::ExecutiveStatus(e)) if e.elapsed_ns >= 7_900_000_000 => break,
+            _ => {}
+        }
+    }
+    let out = child.wait_with_output().expect("exits");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let flight = flight_dir(&out.stdout);
+
+    let mut streams = BTreeMap::new();
+    for task in SHIPPED.tasks.iter().filter_map(|t| stream_of(t.name)) {
+        let path = flight.join(format!("{task}.bin"));
+        let stream = load_stream(&path, |p| panic!("{}: {p:?}", path.display())).expect("reads");
+        streams.insert(task, stream);
+    }
+    let mut checked: BTreeMap<&str, usize> = BTreeMap::new();
+    for d in &data {
+        let task = shipped_task(d.task_index);
+        let stream = &streams[stream_of(task).expect("only logging tasks send data")];
+        let table = stream
+            .table(d.format_index)
+            .unwrap_or_else(|| panic!("{task}: no format {} in the log", d.format_index));
+        // The names on the link are the log's Format Comment.
+        assert_eq!(
+            columns.get(&(d.task_index, d.format_index)),
+            Some(&table.columns.join(",")),
+            "{task} format {}",
+            d.format_index
+        );
+        assert!(!d.values.is_empty(), "{task}: empty values");
+        assert_eq!(d.values.len(), table.columns.len(), "{task}");
+        let t = time_ns(d.time);
+        let matches_row = |row: usize| {
+            d.values
+                .iter()
+                .zip(&table.values)
+                .all(|(v, column)| same(link_value_f64(v), column[row]))
+        };
+        let found = (0..table.times_ns.len())
+            .filter(|&row| table.times_ns[row] == t)
+            .any(matches_row);
+        assert!(
+            found,
+            "{task} format {} at {}: {:?} is not the logged record",
+            d.format_index, d.time, d.values
+        );
+        *checked.entry(task).or_default() += 1;
+    }
+    // Every task of the schedule logs, so every task sent values.
+    for task in SHIPPED.tasks.iter().map(|t| t.name) {
+        assert!(stream_of(task).is_some(), "{task} logs nothing");
+        assert!(
+            checked.get(task).copied().unwrap_or(0) >= 3,
+            "{task}: {checked:?}"
+        );
+    }
+    // Every format the logs hold was on the link, named.
+    for (task_index, slot) in SHIPPED.tasks.iter().enumerate() {
+        let Some(stream) = stream_of(slot.name).map(|s| &streams[s]) else {
+            continue;
+        };
+        for index in stream.tables.keys() {
+            assert!(
+                columns.contains_key(&(task_index as u8, *index)),
+                "{} format {index} never named",
+                slot.name
+            );
+        }
+    }
+}
+
+/// The next telemetry message within 50 ms, decoded.
+fn receive(socket: &mut UdpSocket) -> Option<Telemetry> {
+    let mut buf = [0u8; 2048];
+    let (n, _) = socket.recv_from(&mut buf).ok()?;
+    match decode_datagram(&buf[..n], Verify::No) {
+        Ok((_, Message::Telemetry(t))) => Some(t),
+        _ => None,
+    }
+}
+
+/// A ground that joins 5 s late, and one that loses the link for 3 s and forgets what it
+/// knew, both have every logged format's column names within 2 s.
+#[test]
+fn a_late_or_cut_off_ground_has_every_name_within_two_seconds() {
+    let dir = scratch("link-late");
+    write_key(&dir.join("link.key"), 0x5e);
+    let (mut ground, ground_address) = ground_socket();
+    // The vehicle sends to a relay that drops everything while `cut` is set.
+    let relay = UdpSocket::bind("127.0.0.1:0").expect("relay");
+    relay
+        .set_read_timeout(Some(Duration::from_millis(50)))
+        .expect("timeout");
+    let relay_address = relay.local_addr().expect("addr");
+    let cut = Arc::new(AtomicBool::new(true));
+    let done = Arc::new(AtomicBool::new(false));
+    let relay_thread = {
+        let (cut, done) = (cut.clone(), done.clone());
+        std::thread::spawn(move || {
+            let mut buf = [0u8; 2048];
+            while !done.load(Ordering::Relaxed) {
+                if let Ok((n, _)) = relay.recv_from(&mut buf)
+                    && !cut.load(Ordering::Relaxed)
+                {
+                    let _ = relay.send_to(&buf[..n], ground_address);
+                }
+            }
+        })
+    };
+    let child = sim_on_link(&dir, relay_address, &["--duration", "16", "--json"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("skyframe sim");
+
+    // Names heard since `since`, with when they came.
+    let listen = |ground: &mut UdpSocket, seconds: f64| {
+        let since = Instant::now();
+        let mut named: BTreeMap<(u8, u8), Duration> = BTreeMap::new();
+        while since.elapsed().as_secs_f64() < seconds {
+            if let Some(Telemetry::TaskFormat(f)) = receive(ground) {
+                named
+                    .entry((f.task_index, f.format_index))
+                    .or_insert(since.elapsed());
+            }
+        }
+        named
+    };
+    // Joins once the vehicle has flown 5 s (its first datagram marks its start).
+    std::thread::sleep(Duration::from_secs(5));
+    cut.store(false, Ordering::Relaxed);
+    let late_join = listen(&mut ground, 4.0);
+    // Link lost for 3 s; the ground forgets (a restart).
+    cut.store(true, Ordering::Relaxed);
+    std::thread::sleep(Duration::from_secs(3));
+    while receive(&mut ground).is_some() {}
+    cut.store(false, Ordering::Relaxed);
+    let after_loss = listen(&mut ground, 3.0);
+
+    let out = child.wait_with_output().expect("exits");
+    done.store(true, Ordering::Relaxed);
+    let _ = relay_thread.join();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let flight = flight_dir(&out.stdout);
+    for (task_index, slot) in SHIPPED.tasks.iter().enumerate() {
+        let Some(stream) = stream_of(slot.name) else {
+            continue;
+        };
+        let path = flight.join(format!("{stream}.bin"));
+        let logged = load_stream(&path, |_| {}).expect("reads");
+        for index in logged.tables.keys() {
+            for (when, named) in [("late join", &late_join), ("after loss", &after_loss)] {
+                let at = named.get(&(task_index as u8, *index));
+                assert!(
+                    at.is_some_and(|d| *d <= Duration::from_secs(2)),
+                    "{when}: {} format {index} named at {at:?}",
+                    slot.name
+                );
+            }
+        }
+    }
 }

@@ -61,8 +61,10 @@ fn a_fast_run_is_byte_identical_for_the_same_seed() {
             "gps.bin",
             "health.bin",
             "imu.bin",
+            "link.bin",
             "servo.bin",
-            "truth.bin"
+            "truth.bin",
+            "watchdog.bin"
         ]
     );
     for ((name, x), (_, y)) in la.iter().zip(&lb) {

@@ -285,6 +285,10 @@ pub fn fly<P: Platform>(
     };
     let timing_stream = streams.open("executive", TIMING_RING_BYTES);
     let health_stream = streams.open("health", TASK_RING_BYTES);
+    let watchdog_stream = streams.open("watchdog", TASK_RING_BYTES);
+    let link_stream = link
+        .is_some()
+        .then(|| streams.open("link", TASK_RING_BYTES));
 
     // Device I/O threads, each with its task's log stream.
     let mut serial: Vec<SerialDevice> = Vec::new();
@@ -398,7 +402,13 @@ pub fn fly<P: Platform>(
         )
         .publishing_mode(&active_mode)
     });
-    let mut watchdog = HealthTask::new(&watchdog_out).with_period(&health_period_ms);
+    let (watchdog_tap, link_tap) = (Tap::new(), Tap::new());
+    let mut watchdog = HealthTask::new(&watchdog_out)
+        .logging_to(TappedSink {
+            inner: watchdog_stream,
+            tap: &watchdog_tap,
+        })
+        .with_period(&health_period_ms);
     let mut logging = LoggingTask::new(
         TappedSink {
             inner: health_stream,
@@ -440,6 +450,8 @@ pub fn fly<P: Platform>(
             "gps" if gps_task.is_some() => Some(&gps_tap),
             "servo" if servo_task.is_some() => Some(&servo_tap),
             "logging" => Some(&health_tap),
+            "health" => Some(&watchdog_tap),
+            "telemetry" if link_stream.is_some() => Some(&link_tap),
             "estimator" if estimator_task.is_some() => Some(&estimator_tap),
             "control" if control_task.is_some() => Some(&control_tap),
             _ => None,
@@ -451,12 +463,18 @@ pub fn fly<P: Platform>(
         .map_or(0, |d| u64::try_from(d.as_nanos()).unwrap_or(u64::MAX));
     let mut telemetry_task = None;
     let mut link_io = None;
-    if let Some((key_file, key, run_id, (port, join, io), plan_link)) = link {
+    if let (Some((key_file, key, run_id, (port, join, io), plan_link)), Some(link_log)) =
+        (link, link_stream)
+    {
         let local = io
             .local
             .map_or_else(|| plan_link.commands.to_string(), |a| a.to_string());
         telemetry_task = Some(TelemetryTask::new(
             port,
+            TappedSink {
+                inner: link_log,
+                tap: &link_tap,
+            },
             table,
             key,
             TelemetryConfig {

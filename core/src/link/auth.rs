@@ -248,7 +248,9 @@ pub struct LinkCounters {
 pub const LINK_COUNTERS: usize = 15;
 
 impl LinkCounters {
-    fn as_array(&self) -> [u32; LINK_COUNTERS] {
+    /// The counters in wire order (`docs/link-protocol.md`), which is also the column order of
+    /// `link.bin`.
+    pub fn as_array(&self) -> [u32; LINK_COUNTERS] {
         [
             self.received,
             self.accepted,

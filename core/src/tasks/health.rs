@@ -7,9 +7,20 @@
 //! release skipped, every step faulting. It counts those as misses, keeps the alive light for
 //! telemetry, and publishes a report into a latest-value slot.
 
-use crate::comm::LatestSlot;
+use crate::comm::{LatestSlot, NoLog, RecordSink};
 use crate::executive::{Task, TaskContext, TaskFault};
+use crate::logfmt::format::Format;
+use crate::logfmt::record::LogFormat;
 use crate::schedule::analysis::MAX_TASKS;
+use crate::tasks::task_log::TaskLog;
+
+/// `watchdog.bin`, one record per check: what the watchdog saw (masks are bit sets in
+/// frame-table order) and the misses counted so far over all tasks.
+pub const WATCHDOG_LOG: LogFormat = LogFormat::new(
+    "%u,%u,%u,%u,%u",
+    "checks,alive_mask,stalled_mask,misses_total,period_ms",
+);
+const WATCHDOG_INDEX: u8 = 1;
 
 /// What the watchdog saw at its last check.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -27,8 +38,10 @@ pub struct WatchdogReport {
     pub misses: [u32; MAX_TASKS],
 }
 
-pub struct HealthTask<'a> {
+pub struct HealthTask<'a, S: RecordSink = NoLog> {
     report: WatchdogReport,
+    log: TaskLog<S>,
+    log_format: Format,
     /// Release counts at the previous check.
     releases_seen: [u64; MAX_TASKS],
     out: &'a LatestSlot<WatchdogReport>,
@@ -37,10 +50,12 @@ pub struct HealthTask<'a> {
     last_check_ns: Option<u64>,
 }
 
-impl<'a> HealthTask<'a> {
+impl<'a> HealthTask<'a, NoLog> {
     pub fn new(out: &'a LatestSlot<WatchdogReport>) -> Self {
         Self {
             report: WatchdogReport::default(),
+            log: TaskLog::new(NoLog),
+            log_format: Format::EMPTY,
             releases_seen: [0; MAX_TASKS],
             out,
             period_ms: None,
@@ -48,6 +63,21 @@ impl<'a> HealthTask<'a> {
         }
     }
 
+    /// Logs every check into `sink` (`watchdog.bin`).
+    pub fn logging_to<S: RecordSink>(self, sink: S) -> HealthTask<'a, S> {
+        HealthTask {
+            report: self.report,
+            log: TaskLog::new(sink),
+            log_format: self.log_format,
+            releases_seen: self.releases_seen,
+            out: self.out,
+            period_ms: self.period_ms,
+            last_check_ns: self.last_check_ns,
+        }
+    }
+}
+
+impl<'a, S: RecordSink> HealthTask<'a, S> {
     /// Checks at most every `period_ms` (the ground's "health-check period"); the task still
     /// runs at its frame-table period.
     pub fn with_period(mut self, period_ms: &'a core::cell::Cell<u32>) -> Self {
@@ -60,8 +90,15 @@ impl<'a> HealthTask<'a> {
     }
 }
 
-impl Task for HealthTask<'_> {
+impl<S: RecordSink> Task for HealthTask<'_, S> {
     fn init(&mut self, cx: &mut TaskContext<'_>) -> Result<(), TaskFault> {
+        if self.log_format.fields().is_empty() {
+            self.log_format = self
+                .log
+                .declare(cx, WATCHDOG_INDEX, &WATCHDOG_LOG)
+                .map_err(|_| TaskFault::new("watchdog log format"))?;
+            self.log.begin(cx);
+        }
         // Start counting from now: releases before (re)initialisation are not held against
         // anyone.
         for (index, seen) in self.releases_seen.iter_mut().enumerate() {
@@ -108,7 +145,21 @@ impl Task for HealthTask<'_> {
         self.report.alive = alive;
         self.report.stalled = stalled;
         self.out.publish(self.report);
+        let r = self.report;
+        let misses_total = r.misses.iter().fold(0u32, |sum, m| sum.saturating_add(*m));
+        let period_ms = u32::try_from(period_ns / 1_000_000).unwrap_or(u32::MAX);
+        self.log.record(cx, WATCHDOG_INDEX, &self.log_format, |w| {
+            w.u32(r.checks)
+                .u32(r.alive)
+                .u32(r.stalled)
+                .u32(misses_total)
+                .u32(period_ms)
+        });
         Ok(())
+    }
+
+    fn shutdown(&mut self, cx: &mut TaskContext<'_>) {
+        self.log.end(cx);
     }
 }
 

@@ -19,7 +19,8 @@
 //! latest values, so a ground that joins late has them within that time.
 
 use super::tap::Tap;
-use crate::comm::LatestSlot;
+use super::task_log::TaskLog;
+use crate::comm::{LatestSlot, RecordSink};
 use crate::executive::{Task, TaskContext, TaskFault};
 use crate::link::auth::{CommandGate, GateConfig, LinkKey};
 use crate::link::frame::{Envelope, MAX_DATAGRAM_LEN, encode_datagram};
@@ -29,6 +30,8 @@ use crate::link::messages::{
 };
 use crate::link::params::{ParamTable, SetParamResult};
 use crate::link::telemetry::{Due, TelemetrySchedule, VehicleEnvelopes};
+use crate::logfmt::format::Format;
+use crate::logfmt::record::LogFormat;
 use crate::schedule::FrameTable;
 use crate::schedule::analysis::MAX_TASKS;
 use crate::tasks::health::WatchdogReport;
@@ -68,6 +71,17 @@ pub struct TelemetryConfig {
     pub duration_ns: u64,
 }
 
+/// `link.bin`, once a second and at the end: the link's counters (`LinkCounters`, in wire
+/// order), so what was refused and why is in the flight's log, not only on the ground.
+pub const LINK_LOG: LogFormat = LogFormat::new(
+    "%u,%u,%u,%u,%u,%u,%u,%u,%u,%u,%u,%u,%u,%u,%u",
+    "received,accepted,bad_crc,malformed,wrong_vehicle,unsigned,bad_signature,wrong_run,\
+     replayed,too_many_senders,out_of_range,unknown_param,wrong_type,telemetry_sent,\
+     telemetry_send_failed",
+);
+const LINK_INDEX: u8 = 1;
+const LINK_LOG_INTERVAL_NS: u64 = 1_000_000_000;
+
 /// Datagrams handled per release at most: a flood cannot eat the frame.
 const MAX_COMMANDS_PER_STEP: usize = 8;
 const MAX_SENDS_PER_STEP: usize = 16;
@@ -81,8 +95,11 @@ struct OverrunReport {
     sent_ns: Option<u64>,
 }
 
-pub struct TelemetryTask<'a, P> {
+pub struct TelemetryTask<'a, P, S: RecordSink> {
     port: P,
+    log: TaskLog<S>,
+    log_format: Format,
+    logged_ns: Option<u64>,
     table: &'static FrameTable,
     shared: LinkShared<'a>,
     key: LinkKey,
@@ -96,9 +113,11 @@ pub struct TelemetryTask<'a, P> {
     buf: [u8; MAX_DATAGRAM_LEN],
 }
 
-impl<'a, P: DatagramPort> TelemetryTask<'a, P> {
+impl<'a, P: DatagramPort, S: RecordSink> TelemetryTask<'a, P, S> {
+    /// `log` takes `link.bin` ([`LINK_LOG`]).
     pub fn new(
         port: P,
+        log: S,
         table: &'static FrameTable,
         key: LinkKey,
         config: TelemetryConfig,
@@ -114,6 +133,9 @@ impl<'a, P: DatagramPort> TelemetryTask<'a, P> {
         );
         Self {
             port,
+            log: TaskLog::new(log),
+            log_format: Format::EMPTY,
+            logged_ns: None,
             table,
             shared,
             envelopes: VehicleEnvelopes::new(config.vehicle_id, config.run_id),
@@ -324,6 +346,14 @@ impl<'a, P: DatagramPort> TelemetryTask<'a, P> {
         }
     }
 
+    fn log_counters(&mut self, cx: &TaskContext<'_>) {
+        self.logged_ns = Some(cx.now_ns);
+        let counters = self.gate.counters().as_array();
+        self.log.record(cx, LINK_INDEX, &self.log_format, |w| {
+            counters.iter().fold(w, |w, c| w.u32(*c))
+        });
+    }
+
     fn tap(&self, task_index: u8) -> Option<&'a Tap> {
         self.shared
             .taps
@@ -438,8 +468,15 @@ impl<'a, P: DatagramPort> TelemetryTask<'a, P> {
     }
 }
 
-impl<P: DatagramPort> Task for TelemetryTask<'_, P> {
+impl<P: DatagramPort, S: RecordSink> Task for TelemetryTask<'_, P, S> {
     fn init(&mut self, cx: &mut TaskContext<'_>) -> Result<(), TaskFault> {
+        if self.log_format.fields().is_empty() {
+            self.log_format = self
+                .log
+                .declare(cx, LINK_INDEX, &LINK_LOG)
+                .map_err(|_| TaskFault::new("link log format"))?;
+            self.log.begin(cx);
+        }
         if self.schedule.is_none() {
             self.schedule = Some(TelemetrySchedule::new(self.table.tasks.len(), cx.now_ns));
         }
@@ -460,6 +497,12 @@ impl<P: DatagramPort> Task for TelemetryTask<'_, P> {
         self.receive_commands(cx);
         self.report_overruns(cx);
         self.send_due(cx);
+        if self
+            .logged_ns
+            .is_none_or(|t| cx.now_ns.saturating_sub(t) >= LINK_LOG_INTERVAL_NS)
+        {
+            self.log_counters(cx);
+        }
         Ok(())
     }
 
@@ -467,5 +510,7 @@ impl<P: DatagramPort> Task for TelemetryTask<'_, P> {
         // Last word: the executive's final status, so the ground sees the run end.
         let status = self.executive_status(cx);
         self.send(cx.now_ns, Telemetry::ExecutiveStatus(status), false);
+        self.log_counters(cx);
+        self.log.end(cx);
     }
 }
