@@ -147,8 +147,14 @@ impl<C: Clock> Executive<C> {
     }
 
     fn context(&self, index: usize, frame: u64) -> TaskContext<'_> {
+        self.context_at(index, frame, self.clock.now_ns())
+    }
+
+    /// A task's context at a clock reading the caller already has: each clock read costs tens
+    /// of nanoseconds, and the frame's overhead is counted in them.
+    fn context_at(&self, index: usize, frame: u64, now_ns: u64) -> TaskContext<'_> {
         TaskContext {
-            now_ns: self.clock.now_ns(),
+            now_ns,
             frame,
             task: index,
             health: &self.health,
@@ -249,9 +255,9 @@ impl<C: Clock> Executive<C> {
             if released & bit == 0 {
                 continue;
             }
-            let exec = self.release_task(index, &mut **task, frame, &mut record);
+            let (exec, ended) = self.release_task(index, &mut **task, frame, &mut record);
             tasks_ns = tasks_ns.saturating_add(exec);
-            if record.flags & flags::OVERRUN == 0 && self.clock.now_ns() > deadline {
+            if record.flags & flags::OVERRUN == 0 && ended > deadline {
                 // The next frame became due while this task ran.
                 record.flags |= flags::OVERRUN;
                 record.over_frame |= bit;
@@ -284,14 +290,14 @@ impl<C: Clock> Executive<C> {
     }
 
     /// One release of one task: pending skip or reset, init retry, the step itself, budget
-    /// check. Returns the time spent on the task.
+    /// check. Returns the time spent on the task and the clock when it was done.
     fn release_task(
         &mut self,
         index: usize,
         task: &mut dyn Task,
         frame: u64,
         record: &mut FrameRecord,
-    ) -> u64 {
+    ) -> (u64, u64) {
         let bit = 1u32 << index;
         let budget = self.table.tasks.get(index).map_or(0, |s| s.budget_ns);
         if let Some(h) = self.health.task_mut(index) {
@@ -307,10 +313,11 @@ impl<C: Clock> Executive<C> {
                 h.skipped = h.skipped.saturating_add(1);
                 h.in_frame = false;
             }
-            return 0;
+            return (0, self.clock.now_ns());
         }
 
         let t0 = self.clock.now_ns();
+        let mut step_at = t0;
         if pending.reset {
             task.recover(&mut self.context(index, frame));
             record.reset |= bit;
@@ -319,19 +326,25 @@ impl<C: Clock> Executive<C> {
                 h.initialised = false;
             }
         }
-        let ready = self.health.task(index).is_some_and(|h| h.initialised)
-            || self.init_task(index, task, frame);
+        let initialised = self.health.task(index).is_some_and(|h| h.initialised);
+        let ready = initialised || self.init_task(index, task, frame);
+        if !initialised || pending.reset {
+            // Recovery and init took time of their own: the step starts later.
+            step_at = self.clock.now_ns();
+        }
         let mut result = Ok(());
+        let mut ended = step_at;
         if ready {
-            result = task.step(&mut self.context(index, frame));
+            result = task.step(&mut self.context_at(index, frame, step_at));
+            ended = self.clock.now_ns();
             let extra = self.faults.extra_ns(index, frame);
             if extra > 0 {
-                self.clock
-                    .spin_until(self.clock.now_ns().saturating_add(extra));
+                self.clock.spin_until(ended.saturating_add(extra));
+                ended = self.clock.now_ns();
             }
             record.ran |= bit;
         }
-        let exec = self.clock.now_ns().saturating_sub(t0);
+        let exec = ended.saturating_sub(t0);
         if let Some(slot) = record.exec_ns.get_mut(index) {
             *slot = clamp_u32(exec);
         }
@@ -362,7 +375,7 @@ impl<C: Clock> Executive<C> {
         {
             p.reset = true;
         }
-        exec
+        (exec, ended)
     }
 
     /// Shuts every task down, in table order, and clears the running lights.
