@@ -218,13 +218,16 @@ fn injected_overruns_are_detected_on_the_real_clock_and_policies_apply() {
     let imu = task(&s, "imu");
     assert!(imu["overruns_budget"].as_u64().unwrap_or(0) >= 10, "{s}");
     assert!(imu["resets"].as_u64().unwrap_or(0) >= 10, "{s}");
+    // Each injected frame that ran overran; a loaded machine may miss frame 51 whole behind
+    // frame 50's overrun, and then only frame 50's counts.
+    let injected = estimator_frames.len() as u64;
     let estimator = task(&s, "estimator");
     assert!(
-        estimator["overruns_frame"].as_u64().unwrap_or(0) >= 2,
+        estimator["overruns_frame"].as_u64().unwrap_or(0) >= injected,
         "{s}"
     );
     assert_eq!(estimator["resets"], 0, "log policy only counts");
-    assert!(s["frames_overrun"].as_u64().unwrap_or(0) >= 2, "{s}");
+    assert!(s["frames_overrun"].as_u64().unwrap_or(0) >= injected, "{s}");
     assert!(
         s["max_start_latency_us"].as_f64().unwrap_or(0.0) >= 2000.0,
         "{s}"
