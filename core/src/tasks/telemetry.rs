@@ -440,6 +440,11 @@ impl<'a, P: DatagramPort, S: RecordSink> TelemetryTask<'a, P, S> {
                     self.task_status(cx, task_index).map(Telemetry::TaskStatus)
                 }
                 Due::TaskFormat { task_index } => {
+                    // The task's status (its name) leads its column names, so a ground that
+                    // joins late can label what follows: both within one format interval.
+                    if let Some(status) = self.task_status(cx, task_index) {
+                        self.send(now, Telemetry::TaskStatus(status), false);
+                    }
                     self.send_formats(now, task_index);
                     None
                 }

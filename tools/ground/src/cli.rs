@@ -4,6 +4,7 @@
 
 use crate::json;
 use crate::key::{self, SequenceStore};
+use crate::model::{GroundModel, value_as_f64};
 use crate::net::{CommandError, CommandSender, GroundLink, Incoming, Session};
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use skyframe_core::link::messages::{
@@ -69,6 +70,35 @@ pub enum GroundCommand {
         #[arg(long, value_name = "N")]
         seconds: Option<f64>,
     },
+    /// Print the latest logged value of task columns, e.g. `control.alt_m` (the unit suffix
+    /// may be left out: `control.alt`). With --above/--below, wait until the value crosses.
+    #[command(
+        long_about = "Print the latest value of one or more task columns as the vehicle \
+logged them (the names `skyframe-log to-csv` writes, TASK.COLUMN; the unit suffix may be left \
+out). One name prints the value alone; several print `NAME VALUE UNIT` lines.\n\
+With --above X or --below X (one name), wait until the value crosses X: a script can wait for \
+`control.alt --above 50`. Waits at most --timeout seconds.\n\
+Exit codes: 0 printed; 1 not heard, or not crossed, within --timeout; 2 a name that is not \
+TASK.COLUMN, or a column the task does not log."
+    )]
+    Get {
+        #[arg(value_name = "TASK.COLUMN", required = true)]
+        names: Vec<String>,
+        /// Wait until the value is above X.
+        #[arg(
+            long,
+            value_name = "X",
+            allow_negative_numbers = true,
+            conflicts_with = "below"
+        )]
+        above: Option<f64>,
+        /// Wait until the value is below X.
+        #[arg(long, value_name = "X", allow_negative_numbers = true)]
+        below: Option<f64>,
+        /// One JSON object: name → {value, unit, time (the record's log time, s)}.
+        #[arg(long)]
+        json: bool,
+    },
     /// List the vehicle's parameters: name, type, value, min, max.
     Params,
     /// Set a parameter; the value is read as the parameter's type. Prints the value in force.
@@ -89,7 +119,7 @@ pub enum GroundCommand {
 receive path (socket → decode → model) on loopback for --seconds.\n\
 Each vehicle sends what the protocol's TelemetrySchedule says with every task at the link's \
 fastest rate, 20 Hz: 120 TaskData/s (5 tasks with data, servo with 2 formats), a TaskStatus \
-per second in rotation, ExecutiveStatus every 2 s, each TaskFormat every 10 s: about 122 \
+per second in rotation, ExecutiveStatus every 2 s, each task's status and TaskFormat every 1.5 s: about 125 \
 datagrams/s per vehicle.\n\
 Prints messages/s handled, loss (sent − handled, and the ground's own count from sequence \
 gaps), and CPU: the receive thread's share of one core and the whole process's (which \
@@ -299,6 +329,12 @@ pub fn run(cli: Cli) -> Result<(), Exit> {
                 .map_err(|e| Exit::usage(format!("terminal: {e}")))
         }
         GroundCommand::Monitor { json, seconds } => monitor(common, json, seconds),
+        GroundCommand::Get {
+            names,
+            above,
+            below,
+            json,
+        } => get(common, &names, Threshold::from_args(above, below), json),
         GroundCommand::Params => params(common),
         GroundCommand::Set { name, value } => set(common, &name, &value),
         GroundCommand::Send { what } => send(common, what),
@@ -354,6 +390,162 @@ fn monitor(common: &Common, as_json: bool, seconds: Option<f64>) -> Result<(), E
             return Ok(());
         }
     }
+}
+
+/// What `get --above/--below` waits for.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Threshold {
+    Any,
+    Above(f64),
+    Below(f64),
+}
+
+impl Threshold {
+    fn from_args(above: Option<f64>, below: Option<f64>) -> Self {
+        match (above, below) {
+            (Some(x), _) => Threshold::Above(x),
+            (None, Some(x)) => Threshold::Below(x),
+            (None, None) => Threshold::Any,
+        }
+    }
+
+    fn met(self, value: f64) -> bool {
+        match self {
+            Threshold::Any => true,
+            Threshold::Above(x) => value > x,
+            Threshold::Below(x) => value < x,
+        }
+    }
+}
+
+/// A column's latest value as the ground heard it: (value, log time in s, full column name).
+pub fn latest_column(
+    model: &GroundModel,
+    vehicle_id: u16,
+    task: &str,
+    column: &str,
+) -> Result<Option<(Value, f64, String)>, String> {
+    let Some((_, state)) = model.vehicle(vehicle_id).and_then(|v| v.task_by_name(task)) else {
+        return Ok(None);
+    };
+    for format in state.formats.values() {
+        if let Some(i) = format.column_index(column) {
+            let found = format.latest.get(i).zip(format.latest_time_s());
+            return Ok(found.map(|(v, t)| (*v, t, format.column_name(i))));
+        }
+    }
+    // Every format the task sends has been named, and none has the column: a typo, not a
+    // value still on its way.
+    let named = !state.formats.is_empty() && state.formats.values().all(|f| !f.columns.is_empty());
+    if named {
+        let columns: Vec<&str> = state
+            .formats
+            .values()
+            .flat_map(|f| f.columns.iter().map(String::as_str))
+            .collect();
+        return Err(format!(
+            "task {task} logs no column {column:?} (it logs {})",
+            columns.join(", ")
+        ));
+    }
+    Ok(None)
+}
+
+fn get(common: &Common, names: &[String], threshold: Threshold, as_json: bool) -> Result<(), Exit> {
+    let wanted: Vec<(&str, &str)> = names
+        .iter()
+        .map(|n| {
+            n.split_once('.')
+                .filter(|(t, c)| !t.is_empty() && !c.is_empty())
+                .ok_or_else(|| {
+                    Exit::usage(format!("{n:?} is not TASK.COLUMN (e.g. control.alt_m)"))
+                })
+        })
+        .collect::<Result<_, _>>()?;
+    if threshold != Threshold::Any && wanted.len() != 1 {
+        return Err(Exit::usage("--above/--below take one TASK.COLUMN"));
+    }
+    if let Threshold::Above(x) | Threshold::Below(x) = threshold
+        && !x.is_finite()
+    {
+        return Err(Exit::usage("--above/--below take a finite number"));
+    }
+    let mut session = open_session(common, KeyNeed::Verify)?;
+    let deadline = deadline(common)?;
+    let vehicle_id = session.choose_vehicle(common.vehicle, deadline)?;
+    let mut unknown: Option<String> = None;
+    let mut found: Vec<Option<(Value, f64, String)>> = Vec::new();
+    let crossed = |f: &Option<(Value, f64, String)>| {
+        f.as_ref()
+            .is_some_and(|(v, ..)| threshold.met(value_as_f64(v)))
+    };
+    let done = session
+        .pump_until(deadline, |model| {
+            found.clear();
+            for &(task, column) in &wanted {
+                match latest_column(model, vehicle_id, task, column) {
+                    Ok(latest) => found.push(latest),
+                    Err(e) => {
+                        unknown = Some(e);
+                        return true;
+                    }
+                }
+            }
+            found.iter().all(crossed)
+        })
+        .map_err(Exit::usage)?;
+    if let Some(e) = unknown {
+        return Err(Exit::usage(e));
+    }
+    if !done {
+        let (name, latest) = wanted
+            .iter()
+            .zip(&found)
+            .find(|(_, f)| !crossed(f))
+            .map(|(&(t, c), f)| (format!("{t}.{c}"), f.clone()))
+            .unwrap_or_default();
+        let waited = common.timeout;
+        return Err(Exit::refused(match (latest, threshold) {
+            (None, _) => format!("{name}: not heard from vehicle {vehicle_id} in {waited} s"),
+            (Some((v, t, _)), Threshold::Above(x)) => format!(
+                "{name}: {} at {t:.3} s, not above {x} within {waited} s",
+                value_text(&v)
+            ),
+            (Some((v, t, _)), Threshold::Below(x)) => format!(
+                "{name}: {} at {t:.3} s, not below {x} within {waited} s",
+                value_text(&v)
+            ),
+            (Some(_), Threshold::Any) => format!("{name}: not heard in {waited} s"),
+        }));
+    }
+    let rows: Vec<(String, Value, f64, Option<&str>)> = wanted
+        .iter()
+        .zip(found.iter().flatten())
+        .map(|(&(task, _), (v, t, column))| {
+            let unit = crate::model::column_unit(column);
+            (format!("{task}.{column}"), *v, *t, unit)
+        })
+        .collect();
+    if as_json {
+        let object: serde_json::Map<String, serde_json::Value> = rows
+            .iter()
+            .map(|(name, v, t, unit)| {
+                let mut entry = serde_json::json!({ "value": json::value_json(v), "time": t });
+                if let Some(unit) = unit {
+                    entry["unit"] = serde_json::json!(unit);
+                }
+                (name.clone(), entry)
+            })
+            .collect();
+        println!("{}", serde_json::Value::Object(object));
+    } else if let [(_, v, _, _)] = rows.as_slice() {
+        println!("{}", value_text(v));
+    } else {
+        for (name, v, _, unit) in &rows {
+            println!("{name} {} {}", value_text(v), unit.unwrap_or(""));
+        }
+    }
+    Ok(())
 }
 
 fn params(common: &Common) -> Result<(), Exit> {

@@ -13,6 +13,7 @@ use skyframe_core::link::messages::{
 use skyframe_core::link::params::ParamTable;
 use skyframe_core::link::telemetry::{Due, TelemetrySchedule, VehicleEnvelopes};
 use skyframe_core::logfmt::Time;
+use skyframe_core::tasks::{control, estimator, gps, imu, servo};
 use std::io;
 use std::net::{SocketAddr, UdpSocket};
 use std::sync::Arc;
@@ -21,43 +22,29 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 /// Task names in the frame-table order of the repository's `schedule.toml`, and each
-/// task's formats (index, columns); the last three send no data.
+/// task's formats (index, columns) as the vehicle's tasks declare them in the core; the last
+/// three send no data here.
 pub const TASKS: [(&str, &[(u8, &str)]); 8] = [
-    (
-        "imu",
-        &[(
-            1,
-            "counter,p_rad_s,q_rad_s,r_rad_s,fx_m_s2,fy_m_s2,fz_m_s2,status",
-        )],
-    ),
+    ("imu", &[(imu::FAST_INDEX, imu::IMU_FAST_LOG.columns)]),
     (
         "estimator",
-        &[(1, "roll_rad,pitch_rad,yaw_rad,vn_m_s,ve_m_s,vd_m_s")],
+        &[(
+            estimator::STATE_INDEX,
+            estimator::ESTIMATOR_STATE_LOG.columns,
+        )],
     ),
     (
         "control",
-        &[(
-            1,
-            "roll_ref_rad,pitch_ref_rad,roll_err_rad,pitch_err_rad,aileron_cmd,elevator_cmd",
-        )],
+        &[(control::CONTROL_INDEX, control::CONTROL_LOG.columns)],
     ),
     (
         "servo",
         &[
-            (
-                1,
-                "counter,ch1_us,ch2_us,ch3_us,ch4_us,ch5_us,ch6_us,ch7_us,ch8_us,auto,aileron,elevator,throttle,rudder,batt_avionics_v,batt_servo_v",
-            ),
-            (2, "ready,aileron_cmd,elevator_cmd,throttle_cmd,rudder_cmd"),
+            (servo::PILOT_INDEX, servo::SERVO_PILOT_LOG.columns),
+            (servo::COMMAND_INDEX, servo::SERVO_COMMAND_LOG.columns),
         ],
     ),
-    (
-        "gps",
-        &[(
-            1,
-            "valid,quality,satellites,lat_deg,lon_deg,alt_m,vn_m_s,ve_m_s,vd_m_s,pdop,hdop,vdop,sd_n_m,sd_e_m,sd_d_m,utc_ms",
-        )],
-    ),
+    ("gps", &[(gps::FIX_INDEX, gps::GPS_FIX_LOG.columns)]),
     ("logging", &[]),
     ("telemetry", &[]),
     ("health", &[]),
@@ -228,6 +215,9 @@ impl FakeVehicle {
                 self.send(Telemetry::TaskStatus(status), now_ns, to);
             }
             Due::TaskFormat { task_index } => {
+                // As the vehicle: the task's status (its name) leads its column names.
+                let status = self.task_status(task_index);
+                self.send(Telemetry::TaskStatus(status), now_ns, to);
                 let formats = TASKS.get(usize::from(task_index)).map_or(&[][..], |t| t.1);
                 for &(format_index, columns) in formats {
                     let Ok(columns) = heapless::Vec::from_slice(columns.as_bytes()) else {
@@ -389,86 +379,79 @@ fn default_params() -> ParamTable {
     table
 }
 
-/// Made-up but plausible values for a task's format at `t_ns`: a gentle circle at 12 m/s,
-/// banked 15°, over Zürich.
+/// Made-up but plausible values for a task's format at `t_ns`, column by column: a gentle
+/// circle at 12 m/s, banked 15°, over Zürich. A column not named here is 0.
 pub fn sample_values(task_index: u8, format_index: u8, t_ns: u64) -> heapless::Vec<Value, 32> {
+    let columns = TASKS
+        .get(usize::from(task_index))
+        .and_then(|(_, formats)| formats.iter().find(|(i, _)| *i == format_index))
+        .map_or("", |(_, columns)| *columns);
+    columns
+        .split(',')
+        .filter(|c| !c.is_empty())
+        .map(|column| sample_value(column, t_ns))
+        .take(32)
+        .collect()
+}
+
+fn sample_value(column: &str, t_ns: u64) -> Value {
     let t = t_ns as f64 * 1e-9;
     let phase = t * 0.1;
     let (s, c) = phase.sin_cos();
+    let radius_m = 120.0;
     let f = |x: f64| Value::F32(x as f32);
-    let task = TASKS.get(usize::from(task_index)).map_or("", |t| t.0);
-    let values: Vec<Value> = match (task, format_index) {
-        ("imu", _) => vec![
-            Value::U32((t * 100.0) as u32 % 256),
-            f(0.01 * s),
-            f(0.02 * c),
-            f(0.1),
-            f(0.3 * s),
-            f(0.2),
-            f(-9.80665),
-            Value::U32(0),
-        ],
-        ("gps", _) => {
-            let radius_m = 120.0;
-            let lat = 47.3977 + radius_m * s / 111_320.0;
-            let lon = 8.5456 + radius_m * c / (111_320.0 * 47.3977f64.to_radians().cos());
-            vec![
-                Value::U32(1),
-                Value::U32(1),
-                Value::U32(9),
-                Value::F64(lat),
-                Value::F64(lon),
-                Value::F64(488.0 + 2.0 * s),
-                f(12.0 * c),
-                f(-12.0 * s),
-                f(0.0),
-                f(1.8),
-                f(0.9),
-                f(1.5),
-                f(1.2),
-                f(1.1),
-                f(2.5),
-                Value::U32((t * 1000.0) as u32),
-            ]
+    match column {
+        "counter" => Value::U32((t * 100.0) as u32 % 256),
+        "p_rad_s" => f(0.01 * s),
+        "q_rad_s" => f(0.02 * c),
+        "r_rad_s" => f(0.1),
+        "fx_m_s2" => f(0.3 * s),
+        "fy_m_s2" => f(0.2),
+        "fz_m_s2" => f(-9.80665),
+        "valid" | "quality" | "healthy" | "ready" => Value::U32(1),
+        "satellites" => Value::U32(9),
+        "lat_deg" => Value::F64(47.3977 + radius_m * s / 111_320.0),
+        "lon_deg" => {
+            Value::F64(8.5456 + radius_m * c / (111_320.0 * 47.3977f64.to_radians().cos()))
         }
-        ("estimator", _) => vec![
-            f(0.26 + 0.05 * (t * 0.5).sin()),
-            f(0.05 * (t * 0.3).cos()),
-            f(phase % std::f64::consts::TAU),
-            f(12.0 * c),
-            f(-12.0 * s),
-            f(0.0),
-        ],
-        ("servo", 1) => vec![
-            Value::U32((t * 50.0) as u32 % 256),
-            Value::U32(1500),
-            Value::U32(1450),
-            Value::U32(1600),
-            Value::U32(1500),
-            Value::U32(1000),
-            Value::U32(1000),
-            Value::U32(1000),
-            Value::U32(1000),
-            Value::U32(0),
-            f(0.3 * s),
-            f(-0.1),
-            f(0.6),
-            f(0.0),
-            f(11.8 - 0.001 * t),
-            f(5.1),
-        ],
-        ("servo", _) => vec![Value::U32(1), f(0.25 * s), f(-0.05), f(0.55), f(0.02)],
-        ("control", _) => vec![
-            f(0.26),
-            f(0.0),
-            f(0.01 * s),
-            f(0.02 * c),
-            f(0.25 * s),
-            f(-0.05),
-        ],
-        _ => Vec::new(),
-    };
-    values.into_iter().take(32).collect()
+        "alt_m" => f(488.0 + 2.0 * s),
+        "vn_m_s" => f(12.0 * c),
+        "ve_m_s" => f(-12.0 * s),
+        "pdop" => f(1.8),
+        "hdop" => f(0.9),
+        "vdop" => f(1.5),
+        "sd_n_m" => f(1.2),
+        "sd_e_m" => f(1.1),
+        "sd_d_m" => f(2.5),
+        "utc_ms" => Value::U32((t * 1000.0) as u32),
+        "roll_rad" => f(0.26 + 0.05 * (t * 0.5).sin()),
+        "pitch_rad" => f(0.05 * (t * 0.3).cos()),
+        "yaw_rad" | "course_rad" => f(phase % std::f64::consts::TAU),
+        "pn_m" => f(radius_m * s),
+        "pe_m" => f(radius_m * c),
+        "pd_m" => f(-88.0 - 2.0 * s),
+        "qw" => f(1.0),
+        "mode" => Value::U32(1),
+        "roll_c_rad" => f(0.26),
+        "pitch_c_rad" => f(0.0),
+        "alt_c_m" => f(490.0),
+        "speed_m_s" | "speed_c_m_s" => f(12.0),
+        "ch1_us" | "ch4_us" => Value::U32(1500),
+        "ch2_us" => Value::U32(1450),
+        "ch3_us" => Value::U32(1600),
+        "ch5_us" | "ch6_us" | "ch7_us" | "ch8_us" => Value::U32(1000),
+        "auto" => Value::U32(0),
+        "aileron" => f(0.3 * s),
+        "elevator" => f(-0.1),
+        "throttle" => f(0.6),
+        "batt_avionics_v" => f(11.8 - 0.001 * t),
+        "batt_servo_v" => f(5.1),
+        "aileron_cmd" => f(0.25 * s),
+        "elevator_cmd" => f(-0.05),
+        "throttle_cmd" => f(0.55),
+        "rudder_cmd" => f(0.02),
+        _ => f(0.0),
+    }
 }
 
 /// A healthy task's status, with a few counters set so that a screen shows them: the

@@ -58,32 +58,6 @@ fn task_name(model: &GroundModel, vehicle_id: u16, task_index: u8) -> Option<Str
         .map(str::to_string)
 }
 
-/// The unit a column's name ends in (`conventions.md`: units in the names), as a person
-/// writes it; `None` for a count, a flag or a name without a unit.
-pub fn column_unit(column: &str) -> Option<&'static str> {
-    // Longest suffixes first: `_m_s2` before `_m_s` before `_s`.
-    const UNITS: &[(&str, &str)] = &[
-        ("_rad_s", "rad/s"),
-        ("_m_s2", "m/s^2"),
-        ("_m_s", "m/s"),
-        ("_deg", "deg"),
-        ("_rad", "rad"),
-        ("_ns", "ns"),
-        ("_us", "us"),
-        ("_ms", "ms"),
-        ("_pct", "%"),
-        ("_ga", "Ga"),
-        ("_m", "m"),
-        ("_s", "s"),
-        ("_v", "V"),
-        ("_c", "degC"),
-    ];
-    UNITS
-        .iter()
-        .find(|(suffix, _)| column.ends_with(suffix))
-        .map(|&(_, unit)| unit)
-}
-
 fn column_names(model: &GroundModel, vehicle_id: u16, task: u8, format: u8) -> Vec<String> {
     model
         .vehicle(vehicle_id)
@@ -133,7 +107,7 @@ pub fn telemetry_fields(
             let units: Map<String, Json> = columns
                 .iter()
                 .filter(|_| known)
-                .filter_map(|c| column_unit(c).map(|u| (c.clone(), json!(u))))
+                .filter_map(|c| crate::model::column_unit(c).map(|u| (c.clone(), json!(u))))
                 .collect();
             if !units.is_empty() {
                 put("units", Json::Object(units));

@@ -13,6 +13,8 @@ use std::time::{Duration, Instant};
 
 /// Samples kept per column for charts: a minute at the link's fastest rate (20 Hz).
 pub const HISTORY_LEN: usize = 1200;
+/// The span the charts show: the last minute of the vehicle's clock.
+pub const HISTORY_SPAN_S: f64 = 60.0;
 /// Acknowledgements remembered per vehicle (the UI shows the last few).
 pub const ACKS_KEPT: usize = 16;
 /// Seconds of per-second arrival counts kept per vehicle (the link chart).
@@ -32,6 +34,37 @@ pub fn value_as_f64(value: &Value) -> f64 {
     }
 }
 
+/// The unit a column's name ends in (`conventions.md`: units in the names), as a person
+/// writes it; `None` for a count, a flag or a name without a unit.
+pub fn column_unit(column: &str) -> Option<&'static str> {
+    // Longest suffixes first: `_m_s2` before `_m_s` before `_s`.
+    const UNITS: &[(&str, &str)] = &[
+        ("_rad_s", "rad/s"),
+        ("_m_s2", "m/s^2"),
+        ("_m_s", "m/s"),
+        ("_deg", "deg"),
+        ("_rad", "rad"),
+        ("_ns", "ns"),
+        ("_us", "us"),
+        ("_ms", "ms"),
+        ("_pct", "%"),
+        ("_ga", "Ga"),
+        ("_m", "m"),
+        ("_s", "s"),
+        ("_v", "V"),
+        ("_c", "degC"),
+    ];
+    UNITS
+        .iter()
+        .find(|(suffix, _)| column.ends_with(suffix))
+        .map(|&(_, unit)| unit)
+}
+
+/// A log TIME in seconds.
+pub fn time_s(time: Time) -> f64 {
+    f64::from(time.sec) + f64::from(time.nsec) * 1e-9
+}
+
 /// One of a task's formats: column names (from TaskFormat), latest values, history.
 #[derive(Clone, Debug, Default)]
 pub struct FormatState {
@@ -42,6 +75,8 @@ pub struct FormatState {
     pub latest_time: Option<Time>,
     /// One ring per column, in column order, all of the same length.
     pub history: Vec<VecDeque<f64>>,
+    /// The log TIME of each history entry, in seconds (the vehicle's clock), oldest first.
+    pub history_times_s: VecDeque<f64>,
     pub records: u64,
 }
 
@@ -73,11 +108,33 @@ impl FormatState {
         self.column_index(name).and_then(|i| self.history.get(i))
     }
 
+    /// Seconds of the vehicle's clock of the latest values.
+    pub fn latest_time_s(&self) -> Option<f64> {
+        self.latest_time.map(time_s)
+    }
+
+    /// (seconds before the latest record, value) of one column, for a chart: newest at 0.
+    pub fn recent(&self, column: usize, span_s: f64) -> Vec<(f64, f64)> {
+        let (Some(ring), Some(&newest)) = (self.history.get(column), self.history_times_s.back())
+        else {
+            return Vec::new();
+        };
+        self.history_times_s
+            .iter()
+            .zip(ring)
+            .map(|(&t, &v)| (t - newest, v))
+            .filter(|&(age, _)| age >= -span_s)
+            .collect()
+    }
+
     fn record(&mut self, time: Time, values: &[Value], history_len: usize) {
-        if self.history.len() != values.len() {
-            // The format changed shape (a new build of the vehicle): old history no longer
-            // lines up with the columns.
+        let t = time_s(time);
+        let went_back = self.history_times_s.back().is_some_and(|&last| t < last);
+        if self.history.len() != values.len() || went_back {
+            // The format changed shape (a new build of the vehicle), or the clock went back
+            // (a restart): old history no longer lines up with the columns or the time axis.
             self.history = vec![VecDeque::new(); values.len()];
+            self.history_times_s.clear();
         }
         for (ring, value) in self.history.iter_mut().zip(values) {
             if ring.len() >= history_len {
@@ -85,6 +142,10 @@ impl FormatState {
             }
             ring.push_back(value_as_f64(value));
         }
+        if self.history_times_s.len() >= history_len {
+            self.history_times_s.pop_front();
+        }
+        self.history_times_s.push_back(t);
         self.latest = values.to_vec();
         self.latest_time = Some(time);
         self.records = self.records.saturating_add(1);
@@ -493,6 +554,10 @@ mod tests {
     }
 
     fn data(task_index: u8, values: &[f32]) -> Telemetry {
+        data_at(task_index, 0, values)
+    }
+
+    fn data_at(task_index: u8, t_ms: u64, values: &[f32]) -> Telemetry {
         let mut v = heapless::Vec::new();
         for &x in values {
             v.push(Value::F32(x)).expect("fits");
@@ -500,7 +565,7 @@ mod tests {
         Telemetry::TaskData(TaskData {
             task_index,
             format_index: 1,
-            time: Time::default(),
+            time: Time::from_ns(t_ms * 1_000_000).expect("in range"),
             values: v,
         })
     }
@@ -550,6 +615,27 @@ mod tests {
         assert_eq!(f.history[0], [3.0, 4.0, 5.0]);
         assert_eq!(f.history[1], [-3.0, -4.0, -5.0]);
         assert_eq!(f.records, 5);
+    }
+
+    #[test]
+    fn charts_see_the_last_span_of_the_vehicles_clock_and_a_restart_starts_afresh() {
+        let mut model = GroundModel::new(100);
+        let now = Instant::now();
+        // Every 10 s of vehicle time from 0 to 90 s.
+        for (seq, t_s) in (0..10u64).map(|i| i * 10).enumerate() {
+            let telemetry = data_at(2, t_s * 1000, &[t_s as f32]);
+            model.apply(&header(1, 1, seq as u32 + 1, 1), &telemetry, addr(9), now);
+        }
+        let f = &model.vehicle(1).expect("vehicle").tasks[&2].formats[&1];
+        assert_eq!(f.latest_time_s(), Some(90.0));
+        let recent = f.recent(0, 60.0);
+        assert_eq!(recent.first(), Some(&(-60.0, 30.0)), "{recent:?}");
+        assert_eq!(recent.last(), Some(&(0.0, 90.0)), "{recent:?}");
+        assert_eq!(recent.len(), 7);
+        // The vehicle restarted its clock: the old minute is not drawn behind the new one.
+        model.apply(&header(1, 1, 11, 1), &data_at(2, 500, &[1.0]), addr(9), now);
+        let f = &model.vehicle(1).expect("vehicle").tasks[&2].formats[&1];
+        assert_eq!(f.recent(0, 60.0), [(0.0, 1.0)]);
     }
 
     #[test]

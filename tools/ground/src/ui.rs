@@ -10,7 +10,9 @@
 
 use crate::cli::{ack_result_name, interval_ms_for_hz, value_text};
 use crate::json::mode_name;
-use crate::model::{FormatState, GroundModel, VehicleState, value_as_f64};
+use crate::model::{
+    FormatState, GroundModel, HISTORY_SPAN_S, VehicleState, column_unit, value_as_f64,
+};
 use crate::net::{CommandTarget, RESEND_AFTER, Received, Session, apply};
 use ratatui::Frame;
 use ratatui::crossterm::event::{self, Event, KeyCode, KeyEvent, KeyEventKind, KeyModifiers};
@@ -459,7 +461,8 @@ impl App {
                 "gps" => draw_gps(frame, body, v),
                 "estimator" => draw_estimator(frame, body, v),
                 "servo" => draw_servo(frame, body, v),
-                "imu" => draw_generic(frame, body, v, task, title, &["p", "q", "r"]),
+                "imu" => draw_imu(frame, body, v),
+                "control" => draw_control(frame, body, v),
                 _ => draw_generic(frame, body, v, task, title, &[]),
             },
         }
@@ -826,45 +829,109 @@ fn edit_text(text: &mut String, key: KeyEvent) -> Editing {
     }
 }
 
-/// A column shown in degrees if its unit is radians (degrees only where people read).
-fn display_value(column: &str, value: f64) -> (String, String) {
-    if let Some(base) = column.strip_suffix("_rad_s") {
-        (
-            format!("{base}_deg_s"),
-            format!("{:.2}", value.to_degrees()),
-        )
-    } else if let Some(base) = column.strip_suffix("_rad") {
-        (format!("{base}_deg"), format!("{:.2}", value.to_degrees()))
-    } else if column.ends_with("_deg") {
-        (column.to_string(), format!("{value:.7}"))
-    } else if value.fract() == 0.0 && value.abs() < 1e9 {
-        (column.to_string(), format!("{value:.0}"))
-    } else {
-        (column.to_string(), format!("{value:.3}"))
+/// How a column is shown: its name without the unit suffix, the value in the unit people
+/// read (degrees where the log has radians), and that unit.
+struct Shown {
+    name: String,
+    value: f64,
+    unit: &'static str,
+}
+
+fn shown(column: &str, value: f64) -> Shown {
+    let unit = column_unit(column);
+    let name = strip_unit(column).to_string();
+    match unit {
+        Some("rad") => Shown {
+            name,
+            value: value.to_degrees(),
+            unit: "°",
+        },
+        Some("rad/s") => Shown {
+            name,
+            value: value.to_degrees(),
+            unit: "°/s",
+        },
+        Some("deg") => Shown {
+            name,
+            value,
+            unit: "°",
+        },
+        Some("m/s^2") => Shown {
+            name,
+            value,
+            unit: "m/s²",
+        },
+        unit => Shown {
+            name,
+            value,
+            unit: unit.unwrap_or(""),
+        },
     }
 }
 
+/// A unit suffix is one `_unit` part, or two for compound units (`_m_s`, `_rad_s`, `_m_s2`).
+fn unit_suffix_parts(column: &str) -> usize {
+    match column_unit(column) {
+        Some("m/s" | "rad/s" | "m/s^2") => 2,
+        Some(_) => 1,
+        None => 0,
+    }
+}
+
+/// The column's name without its unit suffix: `p_rad_s` → `p`, `alt_m` → `alt`.
+fn strip_unit(column: &str) -> &str {
+    let mut name = column;
+    for _ in 0..unit_suffix_parts(column) {
+        name = name.rfind('_').map_or(name, |i| &name[..i]);
+    }
+    if name.is_empty() { column } else { name }
+}
+
+fn shown_text(shown: &Shown) -> String {
+    let v = shown.value;
+    // Seven decimals of a degree: 1 cm on the ground.
+    if shown.unit == "°" && (shown.name.ends_with("lat") || shown.name.ends_with("lon")) {
+        format!("{v:.7}")
+    } else if v.fract() == 0.0 && v.abs() < 1e9 {
+        format!("{v:.0}")
+    } else if v.abs() >= 100.0 {
+        format!("{v:.1}")
+    } else {
+        format!("{v:.3}")
+    }
+}
+
+/// Every format's latest values, as the seed's property sheet: name, value, unit.
 fn values_table<'a>(
     task: &str,
     formats: impl Iterator<Item = (&'a u8, &'a FormatState)>,
 ) -> Table<'a> {
     let mut rows = Vec::new();
+    let mut time = None;
     for (index, format) in formats {
+        time = time.max(format.latest_time_s().map(|t| (t * 10.0).round() as i64));
         for (i, value) in format.latest.iter().enumerate() {
-            let (name, text) = display_value(&format.column_name(i), value_as_f64(value));
-            rows.push(Row::new([format!("{index}"), name, text]));
+            let s = shown(&format.column_name(i), value_as_f64(value));
+            rows.push(Row::new([
+                format!("{index}"),
+                s.name.clone(),
+                shown_text(&s),
+                s.unit.to_string(),
+            ]));
         }
     }
+    let at = time.map_or(String::new(), |t| format!("at {:.1} s ", t as f64 / 10.0));
     Table::new(
         rows,
         [
             Constraint::Length(2),
-            Constraint::Length(16),
-            Constraint::Length(14),
+            Constraint::Length(15),
+            Constraint::Length(13),
+            Constraint::Length(5),
         ],
     )
-    .header(Row::new(["#", "column", "value"]).style(Style::new().bold()))
-    .block(Block::bordered().title(format!(" {task} latest ")))
+    .header(Row::new(["#", "name", "value", "unit"]).style(Style::new().bold()))
+    .block(Block::bordered().title(format!(" {task} latest {at}")))
 }
 
 /// Beyond this magnitude a value is left out of charts: the chart's scale would lose the
@@ -884,33 +951,36 @@ const CHART_COLORS: [Color; 6] = [
     Color::Blue,
 ];
 
-/// Recent history of some columns of one format: x is the sample (newest at 0).
-fn history_chart(
-    frame: &mut Frame,
-    area: Rect,
-    title: &str,
-    format: &FormatState,
-    columns: &[usize],
-) {
-    let series: Vec<(String, Vec<(f64, f64)>)> = columns
+/// The last minute of some columns (by name, units may be left out) from one or more
+/// formats, against the vehicle's clock: x is seconds before the newest record.
+fn history_chart(frame: &mut Frame, area: Rect, title: &str, series: &[(&FormatState, &str)]) {
+    let series: Vec<(String, Vec<(f64, f64)>)> = series
         .iter()
-        .filter_map(|&c| {
-            let ring = format.history.get(c)?;
-            let (name, _) = display_value(&format.column_name(c), 0.0);
-            let to_degrees = name != format.column_name(c);
-            let n = ring.len() as f64;
-            let points = ring
-                .iter()
-                .enumerate()
-                .map(|(i, &v)| {
-                    (
-                        i as f64 - n + 1.0,
-                        if to_degrees { v.to_degrees() } else { v },
-                    )
-                })
+        .filter_map(|&(format, column)| {
+            let index = format.column_index(column)?;
+            let s = shown(&format.column_name(index), 0.0);
+            let scale = if s.unit == "°" || s.unit == "°/s" {
+                // Shown in degrees; the history is in the log's unit.
+                if format.column_name(index).ends_with("_deg") {
+                    1.0
+                } else {
+                    1f64.to_degrees()
+                }
+            } else {
+                1.0
+            };
+            let points = format
+                .recent(index, HISTORY_SPAN_S)
+                .into_iter()
+                .map(|(age, v)| (age, v * scale))
                 .filter(|(_, v)| plottable(*v))
                 .collect();
-            Some((name, points))
+            let label = if s.unit.is_empty() {
+                s.name
+            } else {
+                format!("{} {}", s.name, s.unit)
+            };
+            Some((label, points))
         })
         .collect();
     let (mut low, mut high) = (f64::INFINITY, f64::NEG_INFINITY);
@@ -927,12 +997,6 @@ fn history_chart(
         low -= 1.0;
         high += 1.0;
     }
-    let oldest = series
-        .iter()
-        .map(|(_, p)| p.len())
-        .max()
-        .unwrap_or(0)
-        .max(2) as f64;
     let datasets: Vec<Dataset> = series
         .iter()
         .enumerate()
@@ -947,15 +1011,17 @@ fn history_chart(
         .collect();
     let chart = Chart::new(datasets)
         .block(Block::bordered().title(format!(" {title} ")))
-        .x_axis(
-            Axis::default()
-                .bounds([1.0 - oldest, 0.0])
-                .labels([format!("{:.0}", 1.0 - oldest), "samples ago 0".to_string()]),
-        )
+        // The legend names the series and their units: keep it on charts down to a few rows.
+        .hidden_legend_constraints((Constraint::Ratio(1, 2), Constraint::Ratio(3, 4)))
+        .x_axis(Axis::default().bounds([-HISTORY_SPAN_S, 0.0]).labels([
+            format!("-{HISTORY_SPAN_S:.0} s"),
+            format!("-{:.0} s", HISTORY_SPAN_S / 2.0),
+            "now".to_string(),
+        ]))
         .y_axis(
             Axis::default()
                 .bounds([low, high])
-                .labels([format!("{low:.2}"), format!("{high:.2}")]),
+                .labels([format!("{low:.1}"), format!("{high:.1}")]),
         );
     frame.render_widget(chart, area);
 }
@@ -967,37 +1033,80 @@ fn waiting(frame: &mut Frame, area: Rect, task: &str) {
     );
 }
 
-/// The latest values of every format, and a chart of the first columns (or `preferred`).
+/// The latest values of every format beside charts: one chart per group of columns of
+/// its first format, or its first four columns.
 fn draw_generic(
     frame: &mut Frame,
     area: Rect,
     vehicle: &VehicleState,
     task: &str,
     title: &str,
-    preferred: &[&str],
+    charts: &[(&str, &[&str])],
 ) {
     let Some((_, state)) = vehicle.task_by_name(task) else {
         return waiting(frame, area, task);
     };
     let [table_area, chart_area] =
-        Layout::horizontal([Constraint::Length(36), Constraint::Min(20)]).areas(area);
+        Layout::horizontal([Constraint::Length(40), Constraint::Min(20)]).areas(area);
     frame.render_widget(values_table(title, state.formats.iter()), table_area);
-    if let Some(format) = state.formats.values().next() {
-        let mut columns: Vec<usize> = preferred
-            .iter()
-            .filter_map(|c| format.column_index(c))
-            .collect();
-        if columns.is_empty() {
-            columns = (0..format.history.len().min(4)).collect();
-        }
-        history_chart(
-            frame,
-            chart_area,
-            &format!("{title} history"),
-            format,
-            &columns,
-        );
+    let Some(format) = state.formats.values().next() else {
+        return;
+    };
+    let first_columns: Vec<String> = (0..format.history.len().min(4))
+        .map(|i| format.column_name(i))
+        .collect();
+    let default_chart: Vec<&str> = first_columns.iter().map(String::as_str).collect();
+    let default_charts = [("history", default_chart.as_slice())];
+    let charts = if charts.is_empty() {
+        &default_charts[..]
+    } else {
+        charts
+    };
+    let areas = Layout::vertical(vec![Constraint::Fill(1); charts.len()]).split(chart_area);
+    for (&(chart_title, columns), &area) in charts.iter().zip(areas.iter()) {
+        let series: Vec<(&FormatState, &str)> = columns.iter().map(|&c| (format, c)).collect();
+        history_chart(frame, area, &format!("{title} {chart_title}"), &series);
     }
+}
+
+/// The control loops: each target beside what the estimate says it is.
+fn draw_control(frame: &mut Frame, area: Rect, vehicle: &VehicleState) {
+    let Some((_, state)) = vehicle.task_by_name("control") else {
+        return waiting(frame, area, "control");
+    };
+    let Some(format) = state.formats.get(&1) else {
+        return draw_generic(frame, area, vehicle, "control", "Control", &[]);
+    };
+    let [table_area, chart_area] =
+        Layout::horizontal([Constraint::Length(40), Constraint::Min(20)]).areas(area);
+    frame.render_widget(values_table("Control", state.formats.iter()), table_area);
+    let [top, bottom] =
+        Layout::vertical([Constraint::Fill(1), Constraint::Fill(1)]).areas(chart_area);
+    let [a, b] = Layout::horizontal([Constraint::Fill(1), Constraint::Fill(1)]).areas(top);
+    let [c, d] = Layout::horizontal([Constraint::Fill(1), Constraint::Fill(1)]).areas(bottom);
+    for (area, title, actual, target) in [
+        (a, "roll: target vs actual", "roll", "roll_c"),
+        (b, "pitch: target vs actual", "pitch", "pitch_c"),
+        (c, "altitude: target vs actual", "alt", "alt_c"),
+        (d, "course: target vs actual", "course", "course_c"),
+    ] {
+        history_chart(frame, area, title, &[(format, target), (format, actual)]);
+    }
+}
+
+/// Rates and specific force, each in its own chart (their scales differ by 10×).
+fn draw_imu(frame: &mut Frame, area: Rect, vehicle: &VehicleState) {
+    draw_generic(
+        frame,
+        area,
+        vehicle,
+        "imu",
+        "IMU",
+        &[
+            ("angular rates", &["p", "q", "r"]),
+            ("specific force", &["fx", "fy", "fz"]),
+        ],
+    );
 }
 
 fn draw_gps(frame: &mut Frame, area: Rect, vehicle: &VehicleState) {
@@ -1007,8 +1116,21 @@ fn draw_gps(frame: &mut Frame, area: Rect, vehicle: &VehicleState) {
     else {
         return waiting(frame, area, "gps");
     };
-    let [text_area, track_area] =
+    let [text_area, right_area] =
         Layout::horizontal([Constraint::Length(40), Constraint::Min(20)]).areas(area);
+    let [track_area, accuracy_area] =
+        Layout::vertical([Constraint::Percentage(65), Constraint::Min(6)]).areas(right_area);
+    history_chart(
+        frame,
+        accuracy_area,
+        "accuracy: σ N, E, D and HDOP",
+        &[
+            (format, "sd_n"),
+            (format, "sd_e"),
+            (format, "sd_d"),
+            (format, "hdop"),
+        ],
+    );
     let get = |c: &str| format.latest_by_name(c).unwrap_or(f64::NAN);
     let lines = vec![
         Line::from(format!(
@@ -1109,17 +1231,83 @@ fn draw_estimator(frame: &mut Frame, area: Rect, vehicle: &VehicleState) {
     else {
         return draw_generic(frame, area, vehicle, "estimator", "Estimator", &[]);
     };
-    let [indicator_area, chart_area] =
+    let [left_area, chart_area] =
         Layout::horizontal([Constraint::Length(44), Constraint::Min(20)]).areas(area);
-    let roll = format.latest_by_name("roll").unwrap_or(0.0);
-    let pitch = format.latest_by_name("pitch").unwrap_or(0.0);
-    let yaw = format.latest_by_name("yaw");
-    draw_attitude(frame, indicator_area, roll, pitch, yaw);
-    let columns: Vec<usize> = ["roll", "pitch"]
-        .iter()
-        .filter_map(|c| format.column_index(c))
-        .collect();
-    history_chart(frame, chart_area, "attitude history", format, &columns);
+    let [indicator_area, text_area] =
+        Layout::vertical([Constraint::Min(8), Constraint::Length(8)]).areas(left_area);
+    let get = |c: &str| format.latest_by_name(c).unwrap_or(f64::NAN);
+    draw_attitude(
+        frame,
+        indicator_area,
+        get("roll"),
+        get("pitch"),
+        format.latest_by_name("yaw"),
+    );
+    // The estimator's position is north-east-down from its origin (its first fix); the
+    // control task logs the estimate as altitude above sea level and as airspeed.
+    let control = vehicle
+        .task_by_name("control")
+        .and_then(|(_, t)| t.formats.get(&1));
+    let from_control = |c: &str| {
+        control
+            .and_then(|f| f.latest_by_name(c))
+            .unwrap_or(f64::NAN)
+    };
+    let ground_speed = get("vn").hypot(get("ve"));
+    let health = state
+        .formats
+        .values()
+        .find_map(|f| f.latest_by_name("healthy"))
+        .map_or("?", |h| if h >= 0.5 { "healthy" } else { "UNHEALTHY" });
+    let lines = vec![
+        Line::from(format!(
+            "altitude {:.1} m MSL   height {:.1} m",
+            from_control("alt"),
+            -get("pd")
+        )),
+        Line::from(format!(
+            "airspeed {:.1} m/s   ground speed {ground_speed:.1} m/s",
+            from_control("speed")
+        )),
+        Line::from(format!("climb {:+.1} m/s", -get("vd"))),
+        Line::from(format!(
+            "from origin N {:.1}  E {:.1} m",
+            get("pn"),
+            get("pe")
+        )),
+        Line::from(format!("filter {health}")),
+    ];
+    frame.render_widget(
+        Paragraph::new(lines).block(Block::bordered().title(" estimate ")),
+        text_area,
+    );
+    let [attitude_area, altitude_area, speed_area] = Layout::vertical([
+        Constraint::Fill(2),
+        Constraint::Fill(1),
+        Constraint::Fill(1),
+    ])
+    .areas(chart_area);
+    history_chart(
+        frame,
+        attitude_area,
+        "attitude",
+        &[(format, "roll"), (format, "pitch")],
+    );
+    match control {
+        Some(control) => {
+            history_chart(frame, altitude_area, "altitude", &[(control, "alt")]);
+            history_chart(frame, speed_area, "airspeed", &[(control, "speed")]);
+        }
+        None => {
+            history_chart(frame, altitude_area, "down from origin", &[(format, "pd")]);
+            history_chart(
+                frame,
+                speed_area,
+                "velocity",
+                &[(format, "vn"), (format, "ve")],
+            );
+        }
+    }
 }
 
 /// An attitude indicator: the horizon as the pilot sees it. A positive roll (right wing
@@ -1228,11 +1416,18 @@ fn draw_servo(frame: &mut Frame, area: Rect, vehicle: &VehicleState) {
     ])
     .areas(area);
     if let Some(pilot) = pilot {
-        let columns: Vec<usize> = ["aileron", "elevator", "throttle", "rudder"]
+        let mut series: Vec<(&FormatState, &str)> = ["aileron", "elevator", "throttle"]
             .iter()
-            .filter_map(|c| pilot.column_index(c))
+            .map(|&c| (pilot, c))
             .collect();
-        history_chart(frame, chart_area, "pilot sticks history", pilot, &columns);
+        if let Some(computer) = computer {
+            series.extend(
+                ["aileron_cmd", "elevator_cmd", "throttle_cmd"]
+                    .iter()
+                    .map(|&c| (computer, c)),
+            );
+        }
+        history_chart(frame, chart_area, "pilot sticks vs computer", &series);
     }
     let channels = ["aileron", "elevator", "throttle", "rudder"];
     let rows = Layout::vertical(vec![Constraint::Length(2); channels.len() + 1]).split(bars_area);

@@ -307,3 +307,70 @@ fn signed_telemetry_verifies_with_the_key_and_is_refused_with_another() {
     assert_eq!(stop.status.code(), Some(0), "{}", stderr(&stop));
     assert!(vehicle.finish().stopped_by_command);
 }
+
+#[test]
+fn get_prints_the_latest_logged_value_of_a_column() {
+    let ground = Ground::new();
+    let (output, _) = ground.run_with_vehicle(&["get", "imu.fz_m_s2"], 4, 100);
+    assert_eq!(output.status.code(), Some(0), "{}", stderr(&output));
+    // The fake vehicle's IMU reports -9.80665 m/s² as an f32: printed as the link carries it.
+    assert_eq!(stdout(&output).trim(), (-9.80665f32).to_string());
+}
+
+#[test]
+fn get_json_names_each_value_with_its_unit_and_log_time() {
+    let ground = Ground::new();
+    // Units may be left out of the name, as on the log tool's command line.
+    let (output, _) = ground.run_with_vehicle(&["get", "--json", "gps.lat", "imu.p"], 4, 100);
+    assert_eq!(output.status.code(), Some(0), "{}", stderr(&output));
+    let object: serde_json::Value = serde_json::from_str(stdout(&output).trim()).expect("JSON");
+    let lat = &object["gps.lat_deg"];
+    assert_eq!(lat["unit"], "deg", "{object}");
+    let value = lat["value"].as_f64().expect("a number");
+    // The fake vehicle circles 120 m around 47.3977° N.
+    assert!((value - 47.3977).abs() < 0.0011, "{value}");
+    assert!(lat["time"].as_f64().is_some(), "{object}");
+    assert_eq!(object["imu.p_rad_s"]["unit"], "rad/s", "{object}");
+}
+
+#[test]
+fn get_waits_for_a_threshold_and_says_when_it_is_not_crossed() {
+    let ground = Ground::new();
+    // The fake vehicle's GPS altitude is 488 ± 2 m.
+    let (output, _) = ground.run_with_vehicle(&["get", "gps.alt_m", "--above", "480"], 4, 100);
+    assert_eq!(output.status.code(), Some(0), "{}", stderr(&output));
+    let alt: f64 = stdout(&output).trim().parse().expect("a number");
+    assert!(alt > 480.0, "{alt}");
+
+    let (output, _) = ground.run_with_vehicle(
+        &["get", "gps.alt_m", "--above", "1000", "--timeout", "2"],
+        4,
+        100,
+    );
+    assert_eq!(output.status.code(), Some(1), "{}", stderr(&output));
+    let message = stderr(&output);
+    assert!(
+        message.contains("gps.alt_m") && message.contains("not above 1000"),
+        "{message}"
+    );
+    assert_eq!(message.trim().lines().count(), 1, "{message}");
+}
+
+#[test]
+fn get_refuses_a_column_the_task_does_not_log_and_a_malformed_name() {
+    let ground = Ground::new();
+    let (output, _) = ground.run_with_vehicle(&["get", "imu.altitude"], 4, 100);
+    assert_eq!(output.status.code(), Some(2), "{}", stderr(&output));
+    let message = stderr(&output);
+    assert!(
+        message.contains("task imu logs no column \"altitude\"") && message.contains("fz_m_s2"),
+        "{message}"
+    );
+    let output = ground.run(&["get", "altitude"]);
+    assert_eq!(output.status.code(), Some(2));
+    assert!(
+        stderr(&output).contains("not TASK.COLUMN"),
+        "{}",
+        stderr(&output)
+    );
+}

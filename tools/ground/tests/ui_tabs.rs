@@ -11,6 +11,20 @@ use skyframe_core::link::messages::{
 };
 use skyframe_core::logfmt::Time;
 use skyframe_ground::fake_vehicle::{TASKS, sample_task_status, sample_values};
+
+/// Where a column sits in a task's format of the fake vehicle.
+fn column_index(task: usize, format: u8, column: &str) -> usize {
+    let columns = TASKS[task]
+        .1
+        .iter()
+        .find(|(i, _)| *i == format)
+        .expect("format")
+        .1;
+    columns
+        .split(',')
+        .position(|c| c == column)
+        .expect("column")
+}
 use skyframe_ground::model::GroundModel;
 use skyframe_ground::net::{Incoming, Received};
 use skyframe_ground::ui::{App, Input, Request};
@@ -191,11 +205,25 @@ fn imu_tab_shows_rates_in_degrees_and_a_history_chart() {
     script.fly(VEHICLE, 3);
     script.key(KeyCode::Char('2'));
     let screen = script.screen(script.now(3.0));
-    assert!(screen.contains("IMU latest"), "{screen}");
-    assert!(screen.contains("p_deg_s"), "{screen}");
-    assert!(line_with(&screen, "fz_m_s2").contains("-9.807"), "{screen}");
-    assert!(screen.contains("IMU history"), "{screen}");
-    assert!(screen.contains("samples ago"), "{screen}");
+    // The last record streamed is at 2.9 s: its values, by name, in the units people read.
+    assert!(screen.contains("IMU latest at 2.9 s"), "{screen}");
+    let rate = |column: &str| match sample_values(0, 1, 2_900_000_000)[column_index(0, 1, column)] {
+        Value::F32(v) => f64::from(v).to_degrees(),
+        ref other => panic!("{other:?}"),
+    };
+    for column in ["p_rad_s", "q_rad_s", "r_rad_s"] {
+        let row = line_with(&screen, &format!("│1  {} ", &column[..1]));
+        assert!(row.contains(&format!("{:.3}", rate(column))), "{row}");
+        assert!(row.contains("°/s"), "{row}");
+    }
+    let fz = line_with(&screen, "│1  fz ");
+    assert!(fz.contains("-9.807") && fz.contains("m/s²"), "{fz}");
+    // Two charts of the last minute, each with its legend.
+    assert!(screen.contains("IMU angular rates"), "{screen}");
+    assert!(screen.contains("IMU specific force"), "{screen}");
+    assert!(screen.contains("p °/s"), "{screen}");
+    assert!(screen.contains("fz m/s²"), "{screen}");
+    assert!(screen.contains("-60 s"), "{screen}");
 }
 
 #[test]
@@ -224,7 +252,21 @@ fn estimator_tab_draws_an_attitude_indicator_in_degrees() {
     // sample: roll 0.26 + 0.05 sin(0.5 t) rad at t = 1.9 s → about 17.3°.
     let title = line_with(&screen, "attitude: roll");
     assert!(title.contains("roll +17."), "{title}");
-    assert!(screen.contains("attitude history"), "{screen}");
+    assert!(screen.contains(" attitude "), "{screen}");
+    // Altitude and airspeed come from the control task's estimate; height from the
+    // estimator's own north-east-down position (pd = -88 - 2 sin(0.19) m).
+    let altitude = line_with(&screen, "m MSL");
+    let expected_alt = 488.0 + 2.0 * (0.19f64).sin();
+    assert!(
+        altitude.contains(&format!("altitude {expected_alt:.1} m MSL")),
+        "{altitude}"
+    );
+    assert!(
+        altitude.contains(&format!("height {:.1} m", 88.0 + 2.0 * (0.19f64).sin())),
+        "{altitude}"
+    );
+    assert!(screen.contains("airspeed 12.0 m/s"), "{screen}");
+    assert!(screen.contains("filter healthy"), "{screen}");
     // The horizon (braille dots) is drawn inside the indicator.
     assert!(
         screen
@@ -249,7 +291,7 @@ fn servo_tab_has_pilot_and_computer_bars_and_battery_gauges() {
     assert!(screen.contains("avionics battery"), "{screen}");
     assert!(screen.contains("11.80 V (3S)"), "{screen}");
     assert!(screen.contains("5.10 V (1S)"), "{screen}");
-    assert!(screen.contains("pilot sticks history"), "{screen}");
+    assert!(screen.contains("pilot sticks vs computer"), "{screen}");
 }
 
 #[test]
@@ -259,11 +301,20 @@ fn control_tab_shows_its_columns_generically() {
     script.key(KeyCode::Char('6'));
     let screen = script.screen(script.now(2.0));
     assert!(screen.contains("Control latest"), "{screen}");
+    // roll_c_rad = 0.26 rad, shown in degrees.
+    let roll_c = line_with(&screen, "│1  roll_c ");
     assert!(
-        screen.contains("roll_ref_deg"),
-        "radians shown in degrees: {screen}"
+        roll_c.contains(&format!("{:.3}", 0.26f32.to_degrees())) && roll_c.contains('°'),
+        "radians shown in degrees: {roll_c}"
     );
-    assert!(screen.contains("Control history"), "{screen}");
+    for chart in [
+        "roll: target",
+        "pitch: target",
+        "altitude: target",
+        "course: target",
+    ] {
+        assert!(screen.contains(chart), "{chart}: {screen}");
+    }
 }
 
 #[test]
