@@ -1,8 +1,10 @@
 //! The real ground station against the real vehicle on 127.0.0.1: `skyframe-ground monitor`
 //! sees every task's status within 3 s, `send rate` changes a telemetry rate, a stop with the
-//! wrong key does nothing, the right key ends the run cleanly with the logs closed.
+//! wrong key does nothing, the right key ends the run cleanly with the logs closed, and
+//! `get` prints the values the vehicle logged.
 
 use serde_json::Value;
+use skyframe_logtable::load_stream;
 use skyframe_tests::{binary, scratch, skyframe, to_csv};
 use std::net::UdpSocket;
 use std::os::unix::fs::PermissionsExt;
@@ -114,6 +116,27 @@ fn ground_and_vehicle_find_each_other_and_the_key_decides_who_stops_the_run() {
         .count();
     assert!(imu_data >= 15, "imu data at 10 Hz: {imu_data} in 2 s");
 
+    // `get` prints the latest values by name; they are checked against the log below.
+    let out = ground(
+        &[
+            "get",
+            "--json",
+            "estimator.roll_rad",
+            "imu.fz",
+            "gps.lat_deg",
+            "servo.batt_avionics_v",
+        ],
+        &listen,
+        &key,
+        &state,
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let got: Value = serde_json::from_slice(&out.stdout).expect("get --json");
+
     // The wrong key: refused by the vehicle, the ground gives up (exit 1), the run goes on.
     let out = ground(&["send", "stop", "--timeout", "2"], &listen, &wrong, &state);
     assert_eq!(
@@ -142,8 +165,45 @@ fn ground_and_vehicle_find_each_other_and_the_key_decides_who_stops_the_run() {
         "{}",
         report["link"]
     );
-    to_csv(
-        &[report["flight_dir"].as_str().expect("dir")],
-        &dir.join("csv"),
-    );
+    let flight = Path::new(report["flight_dir"].as_str().expect("dir"));
+    to_csv(&[flight.to_str().expect("utf-8")], &dir.join("csv"));
+
+    // Each value `get` printed is the logged value of that column at the record's TIME.
+    for (name, stream) in [
+        ("estimator.roll_rad", "estimator"),
+        ("imu.fz_m_s2", "imu"),
+        ("gps.lat_deg", "gps"),
+        ("servo.batt_avionics_v", "servo"),
+    ] {
+        let entry = &got[name];
+        let value = entry["value"]
+            .as_f64()
+            .unwrap_or_else(|| panic!("{name}: {got}"));
+        // `log_time` is the CSV's exact `sec.nsec` (a wall-clock `time` in f64 seconds is
+        // only good to a few hundred ns).
+        let (sec, nsec) = entry["log_time"]
+            .as_str()
+            .and_then(|t| t.split_once('.'))
+            .unwrap_or_else(|| panic!("{name}: {got}"));
+        let time_ns =
+            sec.parse::<i64>().expect("sec") * 1_000_000_000 + nsec.parse::<i64>().expect("nsec");
+        let column = name.split_once('.').expect("TASK.COLUMN").1;
+        let path = flight.join(format!("{stream}.bin"));
+        let logged = load_stream(&path, |p| panic!("{}: {p:?}", path.display())).expect("log");
+        let found = logged.tables.values().any(|table| {
+            let Some(c) = table.columns.iter().position(|n| n == column) else {
+                return false;
+            };
+            table
+                .times_ns
+                .iter()
+                .zip(&table.values[c])
+                .any(|(&t, &v)| t == time_ns && v == value)
+        });
+        assert!(
+            found,
+            "{name} = {value} at {time_ns} ns is not in {}",
+            path.display()
+        );
+    }
 }

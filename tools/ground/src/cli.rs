@@ -4,12 +4,13 @@
 
 use crate::json;
 use crate::key::{self, SequenceStore};
-use crate::model::{GroundModel, value_as_f64};
+use crate::model::{GroundModel, time_s, value_as_f64};
 use crate::net::{CommandError, CommandSender, GroundLink, Incoming, Session};
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use skyframe_core::link::messages::{
     AckResult, Command, CommandAck, FlightMode, Name, Value, ValueType, limits,
 };
+use skyframe_core::logfmt::Time;
 use std::io::Write;
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -418,19 +419,20 @@ impl Threshold {
     }
 }
 
-/// A column's latest value as the ground heard it: (value, log time in s, full column name).
+/// A column's latest value as the ground heard it: (value, its record's log TIME, full column
+/// name).
 pub fn latest_column(
     model: &GroundModel,
     vehicle_id: u16,
     task: &str,
     column: &str,
-) -> Result<Option<(Value, f64, String)>, String> {
+) -> Result<Option<(Value, Time, String)>, String> {
     let Some((_, state)) = model.vehicle(vehicle_id).and_then(|v| v.task_by_name(task)) else {
         return Ok(None);
     };
     for format in state.formats.values() {
         if let Some(i) = format.column_index(column) {
-            let found = format.latest.get(i).zip(format.latest_time_s());
+            let found = format.latest.get(i).zip(format.latest_time);
             return Ok(found.map(|(v, t)| (*v, t, format.column_name(i))));
         }
     }
@@ -474,8 +476,8 @@ fn get(common: &Common, names: &[String], threshold: Threshold, as_json: bool) -
     let deadline = deadline(common)?;
     let vehicle_id = session.choose_vehicle(common.vehicle, deadline)?;
     let mut unknown: Option<String> = None;
-    let mut found: Vec<Option<(Value, f64, String)>> = Vec::new();
-    let crossed = |f: &Option<(Value, f64, String)>| {
+    let mut found: Vec<Option<(Value, Time, String)>> = Vec::new();
+    let crossed = |f: &Option<(Value, Time, String)>| {
         f.as_ref()
             .is_some_and(|(v, ..)| threshold.met(value_as_f64(v)))
     };
@@ -508,17 +510,17 @@ fn get(common: &Common, names: &[String], threshold: Threshold, as_json: bool) -
         return Err(Exit::refused(match (latest, threshold) {
             (None, _) => format!("{name}: not heard from vehicle {vehicle_id} in {waited} s"),
             (Some((v, t, _)), Threshold::Above(x)) => format!(
-                "{name}: {} at {t:.3} s, not above {x} within {waited} s",
+                "{name}: {} at {t} s, not above {x} within {waited} s",
                 value_text(&v)
             ),
             (Some((v, t, _)), Threshold::Below(x)) => format!(
-                "{name}: {} at {t:.3} s, not below {x} within {waited} s",
+                "{name}: {} at {t} s, not below {x} within {waited} s",
                 value_text(&v)
             ),
             (Some(_), Threshold::Any) => format!("{name}: not heard in {waited} s"),
         }));
     }
-    let rows: Vec<(String, Value, f64, Option<&str>)> = wanted
+    let rows: Vec<(String, Value, Time, Option<&str>)> = wanted
         .iter()
         .zip(found.iter().flatten())
         .map(|(&(task, _), (v, t, column))| {
@@ -530,7 +532,12 @@ fn get(common: &Common, names: &[String], threshold: Threshold, as_json: bool) -
         let object: serde_json::Map<String, serde_json::Value> = rows
             .iter()
             .map(|(name, v, t, unit)| {
-                let mut entry = serde_json::json!({ "value": json::value_json(v), "time": t });
+                // The log TIME as seconds, and exactly as the CSV's time column prints it.
+                let mut entry = serde_json::json!({
+                    "value": json::value_json(v),
+                    "time": time_s(*t),
+                    "log_time": t.to_string(),
+                });
                 if let Some(unit) = unit {
                     entry["unit"] = serde_json::json!(unit);
                 }

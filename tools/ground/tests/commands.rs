@@ -330,6 +330,10 @@ fn get_json_names_each_value_with_its_unit_and_log_time() {
     // The fake vehicle circles 120 m around 47.3977° N.
     assert!((value - 47.3977).abs() < 0.0011, "{value}");
     assert!(lat["time"].as_f64().is_some(), "{object}");
+    assert!(
+        lat["log_time"].as_str().is_some_and(|t| t.contains('.')),
+        "{object}"
+    );
     assert_eq!(object["imu.p_rad_s"]["unit"], "rad/s", "{object}");
 }
 
