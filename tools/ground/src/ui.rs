@@ -901,6 +901,25 @@ fn shown_text(shown: &Shown) -> String {
     }
 }
 
+/// A log TIME (in tenths of a second) as a person reads it: a time of day in UTC when the
+/// vehicle logs wall-clock time (a real-time flight), seconds of flight otherwise.
+fn log_time_text(tenths: i64) -> String {
+    // Any time after 2001 is a wall clock; a flight's own clock never runs that long.
+    const WALL_CLOCK_AFTER_S: i64 = 1_000_000_000;
+    if tenths / 10 >= WALL_CLOCK_AFTER_S {
+        let of_day = tenths.rem_euclid(864_000);
+        format!(
+            "{:02}:{:02}:{:02}.{} UTC",
+            of_day / 36_000,
+            of_day / 600 % 60,
+            of_day / 10 % 60,
+            of_day % 10
+        )
+    } else {
+        format!("{:.1} s", tenths as f64 / 10.0)
+    }
+}
+
 /// Every format's latest values, as the seed's property sheet: name, value, unit.
 fn values_table<'a>(
     task: &str,
@@ -920,7 +939,7 @@ fn values_table<'a>(
             ]));
         }
     }
-    let at = time.map_or(String::new(), |t| format!("at {:.1} s ", t as f64 / 10.0));
+    let at = time.map_or(String::new(), |t| format!("at {} ", log_time_text(t)));
     Table::new(
         rows,
         [
@@ -1261,7 +1280,7 @@ fn draw_estimator(frame: &mut Frame, area: Rect, vehicle: &VehicleState) {
         .map_or("?", |h| if h >= 0.5 { "healthy" } else { "UNHEALTHY" });
     let lines = vec![
         Line::from(format!(
-            "altitude {:.1} m MSL   height {:.1} m",
+            "altitude {:.1} m above home (origin {:.1} m)",
             from_control("alt"),
             -get("pd")
         )),
@@ -1593,4 +1612,25 @@ pub fn run_terminal(session: Session, vehicle: Option<u16>) -> std::io::Result<(
     })();
     ratatui::restore();
     result
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{log_time_text, strip_unit};
+
+    #[test]
+    fn log_times_read_as_flight_seconds_or_utc_time_of_day() {
+        assert_eq!(log_time_text(29), "2.9 s");
+        // 2026-11-25T01:14:39.3Z
+        assert_eq!(log_time_text(17_955_692_793), "01:14:39.3 UTC");
+    }
+
+    #[test]
+    fn names_lose_their_unit_suffix_only() {
+        assert_eq!(strip_unit("p_rad_s"), "p");
+        assert_eq!(strip_unit("fz_m_s2"), "fz");
+        assert_eq!(strip_unit("alt_c_m"), "alt_c");
+        assert_eq!(strip_unit("satellites"), "satellites");
+        assert_eq!(strip_unit("_m"), "_m");
+    }
 }

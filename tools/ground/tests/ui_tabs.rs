@@ -253,16 +253,16 @@ fn estimator_tab_draws_an_attitude_indicator_in_degrees() {
     let title = line_with(&screen, "attitude: roll");
     assert!(title.contains("roll +17."), "{title}");
     assert!(screen.contains(" attitude "), "{screen}");
-    // Altitude and airspeed come from the control task's estimate; height from the
-    // estimator's own north-east-down position (pd = -88 - 2 sin(0.19) m).
-    let altitude = line_with(&screen, "m MSL");
+    // Altitude and airspeed come from the control task's estimate; the height above the
+    // estimator's origin from its own north-east-down position (pd = -88 - 2 sin(0.19) m).
+    let altitude = line_with(&screen, "above home");
     let expected_alt = 488.0 + 2.0 * (0.19f64).sin();
     assert!(
-        altitude.contains(&format!("altitude {expected_alt:.1} m MSL")),
+        altitude.contains(&format!("altitude {expected_alt:.1} m above home")),
         "{altitude}"
     );
     assert!(
-        altitude.contains(&format!("height {:.1} m", 88.0 + 2.0 * (0.19f64).sin())),
+        altitude.contains(&format!("origin {:.1} m", 88.0 + 2.0 * (0.19f64).sin())),
         "{altitude}"
     );
     assert!(screen.contains("airspeed 12.0 m/s"), "{screen}");
