@@ -593,11 +593,13 @@ impl Scenario {
 
     /// Reads a scenario file; errors start with the path.
     pub fn load(path: &std::path::Path) -> Result<Self, ScenarioError> {
-        let src = std::fs::read_to_string(path).map_err(|e| ScenarioError {
-            line: 0,
-            column: 0,
-            message: format!("{}: {e}", path.display()),
-        })?;
+        let src =
+            skyframe_input_files::read_text(path, "scenario", skyframe_input_files::CONFIG_LIMIT)
+                .map_err(|message| ScenarioError {
+                line: 0,
+                column: 0,
+                message,
+            })?;
         Self::parse(&src).map_err(|e| ScenarioError {
             message: format!("{}: {}", path.display(), e.message),
             ..e

@@ -5,6 +5,7 @@ use skyframe_core::schedule::analysis::{
     Analysis, ErrorReport, ExecutiveInput, TASK_CATALOGUE, TaskInput, analyse,
 };
 use skyframe_core::schedule::file::ScheduleFile;
+use skyframe_input_files::{CONFIG_LIMIT, read_text};
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -18,8 +19,7 @@ pub struct Checked {
 /// Reads and checks a schedule file. `Err` is a one-line reason the file could not be read
 /// or parsed (the caller exits 2); an infeasible schedule is `Ok` with `feasible: false`.
 pub fn check_file(path: &Path) -> Result<Checked, String> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+    let text = read_text(path, "schedule", CONFIG_LIMIT)?;
     let file = ScheduleFile::parse(&text).map_err(|e| format!("{}: {e}", path.display()))?;
     let exec = file.executive_input();
     Ok(

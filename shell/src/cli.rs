@@ -65,9 +65,9 @@ pub struct RealtimeArgs {
     /// SCHED_FIFO priority of the executive thread (1-99); 0 keeps the default scheduler.
     #[arg(long, default_value_t = 80, value_parser = clap::value_parser!(u8).range(0..=99))]
     pub priority: u8,
-    /// Pin the executive thread to this CPU.
-    #[arg(long)]
-    pub cpu: Option<usize>,
+    /// Pin the executive thread to this CPU (0..=1023).
+    #[arg(long, value_parser = clap::value_parser!(u16).range(0..=1023))]
+    pub cpu: Option<u16>,
     /// Do not lock memory with mlockall.
     #[arg(long)]
     pub no_mlockall: bool,
@@ -78,7 +78,8 @@ pub struct RealtimeArgs {
     /// QNX only: the system clock period (tick) to ask for, in microseconds; the longest
     /// period at most this long that divides the minor frame is set. 0 leaves the system's
     /// (1 ms by default, which quantises every wake-up). Linux has no tick and ignores it.
-    #[arg(long, default_value_t = 100)]
+    /// 0..=1000000.
+    #[arg(long, default_value_t = 100, value_parser = clap::value_parser!(u64).range(0..=1_000_000))]
     pub clock_period_us: u64,
 }
 
@@ -87,7 +88,7 @@ impl RealtimeArgs {
         RtConfig {
             fifo_priority: (self.priority > 0).then_some(self.priority),
             lock_memory: !self.no_mlockall,
-            cpu: self.cpu,
+            cpu: self.cpu.map(usize::from),
             cpu_dma_latency_us: (!self.allow_deep_idle).then_some(0),
             clock_period_ns: (self.clock_period_us > 0)
                 .then(|| self.clock_period_us.saturating_mul(1000)),
@@ -99,11 +100,12 @@ impl RealtimeArgs {
 /// What every flight takes (`sim` and `run`).
 #[derive(Args, Debug)]
 pub struct FlightArgs {
-    /// How long to fly, in seconds.
-    #[arg(long, value_parser = parse_seconds)]
+    /// How long to fly, in seconds (0..=10000000, about 115 days).
+    #[arg(long, value_parser = parse_flight_seconds)]
     pub duration: Option<f64>,
     /// Make a task overrun on purpose: TASK:EXTRA_US@FROM..TO (minor frames since start),
-    /// e.g. imu:12000@100..110. Repeatable.
+    /// e.g. imu:12000@100..110; EXTRA_US 1..=10000000 (10 s), FROM < TO <= 1000000000.
+    /// Repeatable.
     #[arg(long = "inject-overrun", value_name = "SPEC", value_parser = parse_injection)]
     pub inject_overrun: Vec<Injection>,
     /// Print the end-of-run summary as one JSON object.
@@ -117,12 +119,15 @@ pub struct FlightArgs {
     /// altitude, heading and airspeed.
     #[arg(long, value_name = "FILE")]
     pub mission: Option<PathBuf>,
-    /// Write this stream (`imu`, `gps`, `servo`, `health`, `executive`) as CSV text instead
-    /// of binary. Repeatable.
+    /// Write this stream as CSV text instead of binary: one of the flight's streams
+    /// (`executive`, `health`, `watchdog`, `link`, `imu`, `gps`, `servo`, `estimator`,
+    /// `control`, `truth`; `docs/log-streams.md`); a name the flight does not write is an
+    /// error. Repeatable.
     #[arg(long = "text-log", value_name = "STREAM")]
     pub text_log: Vec<String>,
-    /// Milliseconds of timer measurement before the first frame (0 skips the check).
-    #[arg(long, default_value_t = 200)]
+    /// Milliseconds of timer measurement before the first frame (0 skips the check;
+    /// at most 10000).
+    #[arg(long, default_value_t = 200, value_parser = clap::value_parser!(u64).range(0..=10_000))]
     pub timer_check_ms: u64,
     /// Refuse to fly when the timer check finds wake-ups later than the frame margin
     /// (default: warn and fly).
@@ -243,8 +248,8 @@ pub enum BenchWhat {
         /// Print one JSON object.
         #[arg(long)]
         json: bool,
-        /// Size of each test stream, in megabytes.
-        #[arg(long, default_value_t = 5.0, value_parser = parse_seconds)]
+        /// Size of each test stream, in megabytes (0.01..=1024).
+        #[arg(long, default_value_t = 5.0, value_parser = parse_megabytes)]
         megabytes: f64,
     },
 }
@@ -254,8 +259,8 @@ pub enum BenchWhat {
 pub struct BenchArgs {
     #[command(subcommand)]
     pub what: Option<BenchWhat>,
-    /// Seconds for each of the two runs (bare loop, executive).
-    #[arg(long, default_value_t = 10.0, value_parser = parse_seconds)]
+    /// Seconds for each of the two runs (bare loop, executive): 0.1..=3600.
+    #[arg(long, default_value_t = 10.0, value_parser = parse_bench_seconds)]
     pub seconds: f64,
     /// Print one JSON object instead of the text report.
     #[arg(long)]
@@ -280,11 +285,34 @@ pub struct Injection {
     pub to_frame: u64,
 }
 
-fn parse_seconds(text: &str) -> Result<f64, String> {
-    match text.parse::<f64>() {
-        Ok(s) if (0.0..1e9).contains(&s) => Ok(s),
-        _ => Err(format!("`{text}` is not a number of seconds")),
+/// A number within `low..=high`, or a message that says the range.
+fn number_within(text: &str, low: f64, high: f64, what: &str) -> Result<f64, String> {
+    match text.trim().parse::<f64>() {
+        Ok(x) if (low..=high).contains(&x) => Ok(x),
+        Ok(_) => Err(format!(
+            "`{text}` is out of range: {what} is {low}..={high}"
+        )),
+        Err(_) => Err(format!("`{text}` is not a number of {what}")),
     }
+}
+
+/// The longest flight: 10⁷ s (about 115 days), past any battery.
+pub const MAX_FLIGHT_S: f64 = 1e7;
+/// The longest injected overrun: 10 s (a task stuck that long is what the test is about).
+pub const MAX_INJECTED_US: u64 = 10_000_000;
+/// The last minor frame an injection may name (about 115 days at 10 ms).
+pub const MAX_INJECTED_FRAME: u64 = 1_000_000_000;
+
+fn parse_flight_seconds(text: &str) -> Result<f64, String> {
+    number_within(text, 0.0, MAX_FLIGHT_S, "seconds")
+}
+
+fn parse_bench_seconds(text: &str) -> Result<f64, String> {
+    number_within(text, 0.1, 3600.0, "seconds")
+}
+
+fn parse_megabytes(text: &str) -> Result<f64, String> {
+    number_within(text, 0.01, 1024.0, "megabytes")
 }
 
 pub fn parse_injection(text: &str) -> Result<Injection, String> {
@@ -302,13 +330,33 @@ pub fn parse_injection(text: &str) -> Result<Injection, String> {
     if injection.task.is_empty() || injection.to_frame <= injection.from_frame {
         return Err(bad());
     }
+    check_injection_range(&injection)?;
     Ok(injection)
+}
+
+/// The documented ranges (`--help`): an overrun of at most [`MAX_INJECTED_US`] in frames up
+/// to [`MAX_INJECTED_FRAME`]. Also applied to a scenario's task-overrun faults.
+fn check_injection_range(i: &Injection) -> Result<(), String> {
+    if !(1..=MAX_INJECTED_US).contains(&i.extra_us) {
+        return Err(format!(
+            "--inject-overrun {}: EXTRA_US {} is out of range 1..={MAX_INJECTED_US}",
+            i.task, i.extra_us
+        ));
+    }
+    if i.to_frame > MAX_INJECTED_FRAME {
+        return Err(format!(
+            "--inject-overrun {}: frame {} is past the last one, {MAX_INJECTED_FRAME}",
+            i.task, i.to_frame
+        ));
+    }
+    Ok(())
 }
 
 /// Turns typed injections into the executive's fault plan, naming the first unknown task.
 pub fn fault_plan(table: &FrameTable, injections: &[Injection]) -> Result<FaultPlan, String> {
     let mut plan = FaultPlan::new();
     for i in injections {
+        check_injection_range(i)?;
         let task = table.task_index(&i.task).ok_or_else(|| {
             let names: Vec<&str> = table.tasks.iter().map(|t| t.name).collect();
             format!(

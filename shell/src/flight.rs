@@ -2,7 +2,7 @@
 //! its tasks, and the report at the end. Slots whose task does not exist yet (estimator,
 //! control, telemetry until their issues land) hold idle tasks.
 
-use crate::host::{HostError, RunOptions, run_executive};
+use crate::host::{EXIT_STOPPED_STUCK, HostError, RunOptions, STOP_CLOSE_WAIT, run_executive};
 use crate::idle::{IdleTask, idle_tasks};
 use crate::logwriter::{LogStream, LogWriter, StreamMode, StreamStatus, WriterConfig};
 use crate::platform::Platform;
@@ -37,7 +37,7 @@ use std::cell::{Cell, RefCell};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::time::{SystemTime, UNIX_EPOCH};
+use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
 /// Ring of the executive's timing stream: ~100 B a frame, so several seconds of backlog.
 const TIMING_RING_BYTES: usize = 256 * 1024;
@@ -330,6 +330,18 @@ pub fn fly<P: Platform>(
     let estimator_stream = has_devices.then(|| streams.open("estimator", TASK_RING_BYTES));
     let control_stream = has_devices.then(|| streams.open("control", TASK_RING_BYTES));
 
+    // A stream named for text that this flight does not write is a typo, not a no-op.
+    if let Some(unknown) = streams
+        .text
+        .iter()
+        .find(|t| !streams.statuses.iter().any(|(name, _)| name == *t))
+    {
+        let written: Vec<&str> = streams.statuses.iter().map(|(n, _)| n.as_str()).collect();
+        return Err(format!(
+            "--text-log {unknown}: this flight writes no such stream ({})",
+            written.join(", ")
+        ));
+    }
     let writer = streams.writer.start().map_err(|e| {
         format!(
             "cannot start the log writer in {}: {e}",
@@ -519,8 +531,27 @@ pub fn fly<P: Platform>(
         real.push(("servo", t));
     }
     let mut tasks = assemble(table, &mut idle, real);
+    // A stop that a stuck task keeps waiting: close the logs whole and end the process
+    // around the task (the executive never cancels one), with an exit code that says so.
+    let emergency = writer.emergency_close();
+    let stuck_flight_dir = flight_dir.display().to_string();
+    let on_stuck = move |waited: Duration| {
+        let closed = emergency.close(STOP_CLOSE_WAIT);
+        eprintln!(
+            "skyframe: stopped abnormally: a task was still in its step {:.0} ms after the stop \
+             request; logs in {stuck_flight_dir} {} (exit {EXIT_STOPPED_STUCK})",
+            waited.as_secs_f64() * 1e3,
+            if closed {
+                "closed whole"
+            } else {
+                "NOT closed in time"
+            },
+        );
+        std::process::exit(EXIT_STOPPED_STUCK);
+    };
     let options = RunOptions {
         log_time_origin_ns: time_origin_ns,
+        on_stuck_stop: Some(&on_stuck),
         ..plan.options
     };
     let result = match sim {

@@ -10,7 +10,7 @@ use skyframe_core::executive::{
 };
 use skyframe_core::schedule::FrameTable;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 /// Timing records buffered between the executive and their consumer: 10 s of 10 ms frames.
 const TIMING_RING: usize = 1024;
@@ -88,7 +88,20 @@ pub struct RunOptions<'a> {
     pub stop: &'a AtomicBool,
     /// Log TIME of the executive's clock zero (wall clock on a vehicle, 0 in simulation).
     pub log_time_origin_ns: u64,
+    /// Called (on a guard thread) when `stop` has been set for [`STOP_GRACE`] and the
+    /// executive has still not finished its frame: a task is stuck in its step. The executive
+    /// never cancels a task, so the process must end around it: the callback closes what
+    /// must be closed and exits. `None`: wait for the task, however long.
+    pub on_stuck_stop: Option<&'a (dyn Fn(Duration) + Sync)>,
 }
+
+/// How long a stop request waits for the running frame to end before the process is ended
+/// around a stuck task: the rest of the 1 s a stop may take is for closing the logs.
+pub const STOP_GRACE: Duration = Duration::from_millis(400);
+/// How long the log writer gets to close every file after [`STOP_GRACE`].
+pub const STOP_CLOSE_WAIT: Duration = Duration::from_millis(500);
+/// The exit code of a run ended around a task stuck in its step (README: exit codes).
+pub const EXIT_STOPPED_STUCK: i32 = 4;
 
 impl<'a> RunOptions<'a> {
     /// A run of `duration` with default real-time settings, timer check and no faults.
@@ -100,6 +113,7 @@ impl<'a> RunOptions<'a> {
             realtime: RtConfig::default(),
             stop,
             log_time_origin_ns: 0,
+            on_stuck_stop: None,
         }
     }
 }
@@ -214,6 +228,14 @@ pub fn run_executive<P: Platform>(
             })
             .map_err(HostError::Spawn)?;
 
+        if let Some(on_stuck) = options.on_stuck_stop {
+            let (stop, done) = (options.stop, &executive_done);
+            std::thread::Builder::new()
+                .name("stop-guard".into())
+                .stack_size(64 * 1024)
+                .spawn_scoped(scope, move || guard_stop(stop, done, on_stuck))
+                .map_err(HostError::Spawn)?;
+        }
         let sink = if platform.virtual_time() {
             RingSink::waiting(producer)
         } else {
@@ -279,6 +301,26 @@ fn fly<T: FrameTimer>(
         })
         .collect();
     Ok((reason, elapsed, health.frames, tasks))
+}
+
+/// Watches for a stop request that the executive does not answer within [`STOP_GRACE`]
+/// (it checks between frames, so only a task stuck in its step delays it), then hands over
+/// to `on_stuck`. Returns once the executive is done.
+fn guard_stop(stop: &AtomicBool, done: &AtomicBool, on_stuck: &(dyn Fn(Duration) + Sync)) {
+    let mut stop_seen: Option<Instant> = None;
+    while !done.load(Ordering::Acquire) {
+        if stop_seen.is_none() && stop.load(Ordering::Relaxed) {
+            stop_seen = Some(Instant::now());
+        }
+        if let Some(since) = stop_seen
+            && since.elapsed() >= STOP_GRACE
+            && !done.load(Ordering::Acquire)
+        {
+            on_stuck(since.elapsed());
+            return;
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
 }
 
 /// Empties the ring until the executive is done and the ring is empty.

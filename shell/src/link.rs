@@ -33,10 +33,7 @@ pub fn load_key(path: &Path) -> Result<LinkKey, String> {
             meta.permissions().mode() & 0o777
         ));
     }
-    let mut bytes = Vec::new();
-    std::fs::File::open(path)
-        .and_then(|mut f| f.read_to_end(&mut bytes))
-        .map_err(|e| format!("key {}: {e}", path.display()))?;
+    let bytes = skyframe_input_files::read_bytes(path, "key", skyframe_input_files::KEY_LIMIT)?;
     if let Ok(raw) = <[u8; 32]>::try_from(bytes.as_slice()) {
         return Ok(LinkKey::new(raw));
     }

@@ -131,6 +131,8 @@ struct Drain {
     file_bytes: u64,
     sequence: u32,
     last_time: [u8; 8],
+    /// A Begin Data was written and its End not yet: a task is logging into this stream.
+    section_open: bool,
     /// Some: this stream is written as CSV text instead of binary.
     text: Option<TextStream>,
 }
@@ -153,7 +155,36 @@ pub struct LogWriter {
 /// The running writer: stop it to drain every ring, close and fsync every file.
 pub struct WriterHandle {
     stop: Arc<AtomicBool>,
+    abandoned: Arc<AtomicBool>,
+    closed: Arc<AtomicBool>,
     join: Option<JoinHandle<Vec<PathBuf>>>,
+}
+
+/// Closes the log from another thread when the run cannot end normally (a stop request while
+/// a task is stuck in its step): the writer drains what the rings hold — whole records only,
+/// as tasks push them — writes each file's End, fsyncs and closes them.
+#[derive(Clone)]
+pub struct EmergencyClose {
+    stop: Arc<AtomicBool>,
+    abandoned: Arc<AtomicBool>,
+    closed: Arc<AtomicBool>,
+}
+
+impl EmergencyClose {
+    /// Asks the writer to close every file and waits up to `wait` for it; `true` once closed.
+    pub fn close(&self, wait: Duration) -> bool {
+        // The tasks will not write their End Data: the writer ends their sections itself.
+        self.abandoned.store(true, Ordering::Release);
+        self.stop.store(true, Ordering::Release);
+        let until = Instant::now() + wait;
+        while Instant::now() < until {
+            if self.closed.load(Ordering::Acquire) {
+                return true;
+            }
+            std::thread::sleep(Duration::from_millis(2));
+        }
+        self.closed.load(Ordering::Acquire)
+    }
 }
 
 impl LogWriter {
@@ -184,6 +215,7 @@ impl LogWriter {
             file_bytes: 0,
             sequence: 0,
             last_time: [0; 8],
+            section_open: false,
             text: (mode == StreamMode::Text).then(|| TextStream::new(name)),
         });
         LogStream {
@@ -196,18 +228,39 @@ impl LogWriter {
     pub fn start(self) -> std::io::Result<WriterHandle> {
         std::fs::create_dir_all(&self.config.dir)?;
         let stop = Arc::new(AtomicBool::new(false));
-        let thread_stop = Arc::clone(&stop);
+        let closed = Arc::new(AtomicBool::new(false));
+        let abandoned = Arc::new(AtomicBool::new(false));
+        let (thread_stop, thread_closed, thread_abandoned) = (
+            Arc::clone(&stop),
+            Arc::clone(&closed),
+            Arc::clone(&abandoned),
+        );
         let join = std::thread::Builder::new()
             .name("log-writer".into())
-            .spawn(move || writer_thread(self.config, self.drains, &thread_stop))?;
+            .spawn(move || {
+                let files =
+                    writer_thread(self.config, self.drains, &thread_stop, &thread_abandoned);
+                thread_closed.store(true, Ordering::Release);
+                files
+            })?;
         Ok(WriterHandle {
             stop,
+            abandoned,
+            closed,
             join: Some(join),
         })
     }
 }
 
 impl WriterHandle {
+    pub fn emergency_close(&self) -> EmergencyClose {
+        EmergencyClose {
+            stop: Arc::clone(&self.stop),
+            abandoned: Arc::clone(&self.abandoned),
+            closed: Arc::clone(&self.closed),
+        }
+    }
+
     /// Drains every ring, writes, fsyncs and closes every file; returns the files written.
     pub fn finish(mut self) -> Vec<PathBuf> {
         self.stop.store(true, Ordering::Release);
@@ -318,6 +371,11 @@ impl Drain {
                 if let Some(t) = record.get(4..12) {
                     self.last_time.copy_from_slice(t);
                 }
+                match k {
+                    BEGIN_DATA => self.section_open = true,
+                    END_DATA => self.section_open = false,
+                    _ => {}
+                }
             }
             _ => {}
         }
@@ -425,7 +483,12 @@ impl Drain {
     }
 }
 
-fn writer_thread(config: WriterConfig, mut drains: Vec<Drain>, stop: &AtomicBool) -> Vec<PathBuf> {
+fn writer_thread(
+    config: WriterConfig,
+    mut drains: Vec<Drain>,
+    stop: &AtomicBool,
+    abandoned: &AtomicBool,
+) -> Vec<PathBuf> {
     let mut files = Vec::new();
     let mut last_flush = Instant::now();
     let mut last_sync = Instant::now();
@@ -453,7 +516,17 @@ fn writer_thread(config: WriterConfig, mut drains: Vec<Drain>, stop: &AtomicBool
             std::thread::sleep(config.idle_poll);
         }
     }
+    let abandoned = abandoned.load(Ordering::Acquire);
     for d in &mut drains {
+        if abandoned
+            && d.section_open
+            && d.text.is_none()
+            && let Some(w) = d.file.as_mut()
+            && let Err(e) = w.write_all(&marker(END_DATA, d.last_time))
+        {
+            log::error!("log {}: ending the section failed: {e}", d.name);
+            d.status.failed.store(true, Ordering::Relaxed);
+        }
         if !d.status.failed.load(Ordering::Relaxed)
             && let Err(e) = d.close()
         {

@@ -17,6 +17,7 @@
 use serde::Deserialize;
 use skyframe_core::control::mission::{MAX_WAYPOINTS, Mission, Waypoint};
 use skyframe_core::schedule::file::toml_error_line;
+use skyframe_input_files::{CONFIG_LIMIT, read_text};
 use std::path::Path;
 
 #[derive(Debug, Deserialize)]
@@ -42,8 +43,7 @@ struct WaypointEntry {
 
 /// Reads a mission file; `Err` is one line naming the file and what is wrong.
 pub fn load(path: &Path) -> Result<Mission, String> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+    let text = read_text(path, "mission", CONFIG_LIMIT)?;
     parse(&text).map_err(|e| format!("{}: {e}", path.display()))
 }
 

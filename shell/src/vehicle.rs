@@ -28,6 +28,7 @@
 
 use serde::Deserialize;
 use skyframe_core::schedule::file::toml_error_line;
+use skyframe_input_files::{CONFIG_LIMIT, read_text};
 use std::path::{Path, PathBuf};
 
 #[derive(Clone, Debug, Deserialize, PartialEq, Eq)]
@@ -90,8 +91,7 @@ const BAUD_RATES: &[u32] = &[
 impl VehicleConfig {
     /// Reads and checks a vehicle file; `Err` is one line naming the file and the key.
     pub fn load(path: &Path) -> Result<Self, String> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+        let text = read_text(path, "vehicle", CONFIG_LIMIT)?;
         Self::parse(&text).map_err(|e| format!("{}: {e}", path.display()))
     }
 

@@ -42,11 +42,48 @@ pub struct TaskEntry {
 const MS: u64 = 1_000_000;
 const US: u64 = 1_000;
 
+/// The longest period (and offset) a task may have: an hour. Longer is a typo, and times in
+/// ns must not overflow when the analysis adds them up.
+pub const MAX_PERIOD_MS: u64 = 3_600_000;
+/// The longest budget, margin or late-start threshold: 10 s.
+pub const MAX_BUDGET_US: u64 = 10_000_000;
+
 impl ScheduleFile {
     /// Parses the text of a schedule file; the error says the line and column.
     pub fn parse(text: &str) -> Result<Self, String> {
         let file: Self = toml::from_str(text).map_err(|e| toml_error_line(&e, text))?;
+        let e = &file.executive;
+        for (key, value, max) in [
+            ("margin_us", e.margin_us, MAX_BUDGET_US),
+            ("late_start_us", e.late_start_us, MAX_BUDGET_US),
+            (
+                "minor_frame_ms",
+                e.minor_frame_ms.unwrap_or(1),
+                MAX_PERIOD_MS,
+            ),
+        ] {
+            if value > max {
+                return Err(std::format!(
+                    "[executive] {key} = {value} is out of range (at most {max})"
+                ));
+            }
+        }
+        if e.minor_frame_ms == Some(0) {
+            return Err("[executive] minor_frame_ms = 0: a minor frame takes time".to_string());
+        }
         for t in &file.tasks {
+            for (key, value, low, high) in [
+                ("period_ms", t.period_ms, 1, MAX_PERIOD_MS),
+                ("offset_ms", t.offset_ms, 0, MAX_PERIOD_MS),
+                ("budget_us", t.budget_us, 0, MAX_BUDGET_US),
+            ] {
+                if !(low..=high).contains(&value) {
+                    return Err(std::format!(
+                        "task `{}`: {key} = {value} is out of range ({low}..={high})",
+                        t.name
+                    ));
+                }
+            }
             if OverrunPolicy::parse(&t.on_overrun).is_none() {
                 return Err(std::format!(
                     "task `{}`: on_overrun = \"{}\" is not one of log, skip, reset",

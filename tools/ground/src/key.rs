@@ -49,7 +49,7 @@ pub fn read_key_file(path: &Path) -> Result<LinkKey, String> {
             mode & 0o777
         ));
     }
-    let bytes = fs::read(path).map_err(|e| format!("cannot read key {}: {e}", path.display()))?;
+    let bytes = skyframe_input_files::read_bytes(path, "key", skyframe_input_files::KEY_LIMIT)?;
     parse_key_bytes(&bytes).ok_or_else(|| {
         format!(
             "key file {} is not 64 hex digits or 32 bytes",
