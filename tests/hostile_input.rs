@@ -20,7 +20,10 @@ fn refused_in_one_line(args: &[&str], says: &str) {
     assert!(text.contains(says), "{args:?}: {text}");
     // clap's own errors add a "For more information" hint after a blank line; ours are one.
     let first = text.lines().next().unwrap_or_default();
-    assert!(first.contains(says), "{args:?}: the first line says why: {text}");
+    assert!(
+        first.contains(says),
+        "{args:?}: the first line says why: {text}"
+    );
     // Refused before the run: no file read to its end, no timer measured.
     assert!(started.elapsed() < Duration::from_secs(5), "{args:?}");
 }
@@ -43,10 +46,7 @@ fn endless_files_are_refused_at_their_size_limit() {
         &["run", "--vehicle", "/dev/zero"],
         "vehicle /dev/zero: larger than 1 MiB",
     );
-    refused_in_one_line(
-        &["sim", "--fast", "--key", "/dev/zero"],
-        "key /dev/zero",
-    );
+    refused_in_one_line(&["sim", "--fast", "--key", "/dev/zero"], "key /dev/zero");
 }
 
 #[test]
@@ -56,7 +56,13 @@ fn numbers_out_of_their_documented_range_are_refused_before_the_run() {
         "99999999999 is not in 0..=10000",
     );
     refused_in_one_line(
-        &["sim", "--duration", "1", "--inject-overrun", "imu:99999999999@0..10"],
+        &[
+            "sim",
+            "--duration",
+            "1",
+            "--inject-overrun",
+            "imu:99999999999@0..10",
+        ],
         "EXTRA_US 99999999999 is out of range 1..=10000000",
     );
     refused_in_one_line(
@@ -67,7 +73,10 @@ fn numbers_out_of_their_documented_range_are_refused_before_the_run() {
     refused_in_one_line(&["sim", "--duration", "nan"], "out of range");
     refused_in_one_line(&["bench", "--seconds", "1e9"], "out of range");
     refused_in_one_line(&["bench", "parsers", "--megabytes", "1e9"], "out of range");
-    refused_in_one_line(&["sim", "--clock-period-us", "99999999999"], "not in 0..=1000000");
+    refused_in_one_line(
+        &["sim", "--clock-period-us", "99999999999"],
+        "not in 0..=1000000",
+    );
     refused_in_one_line(&["sim", "--cpu", "70000"], "not in 0..=1023");
 }
 
@@ -91,7 +100,15 @@ fn an_overflowing_schedule_number_is_named_not_wrapped() {
 fn an_unknown_text_log_stream_is_an_error() {
     let dir = scratch("hostile-text-log");
     let out = skyframe()
-        .args(["sim", "--fast", "--duration", "1", "--no-link", "--text-log", "nosuch"])
+        .args([
+            "sim",
+            "--fast",
+            "--duration",
+            "1",
+            "--no-link",
+            "--text-log",
+            "nosuch",
+        ])
         .arg("--log-dir")
         .arg(&dir)
         .output()
@@ -105,7 +122,15 @@ fn an_unknown_text_log_stream_is_an_error() {
     );
     // A known one is still taken.
     let out = skyframe()
-        .args(["sim", "--fast", "--duration", "1", "--no-link", "--text-log", "gps"])
+        .args([
+            "sim",
+            "--fast",
+            "--duration",
+            "1",
+            "--no-link",
+            "--text-log",
+            "gps",
+        ])
         .arg("--log-dir")
         .arg(&dir)
         .output()
@@ -159,7 +184,10 @@ fn a_stop_while_a_task_is_stuck_ends_the_run_within_a_second_with_the_logs_whole
         .lines()
         .find(|l| l.contains("stopped abnormally"))
         .unwrap_or_else(|| panic!("{text}"));
-    assert!(line.contains("closed whole") && line.contains("exit 4"), "{line}");
+    assert!(
+        line.contains("closed whole") && line.contains("exit 4"),
+        "{line}"
+    );
 
     let flight = std::fs::read_dir(&dir)
         .expect("dir")
@@ -180,8 +208,16 @@ fn a_stop_while_a_task_is_stuck_ends_the_run_within_a_second_with_the_logs_whole
                 .expect("skyframe-log info");
             let report = String::from_utf8_lossy(&out.stdout);
             assert!(out.status.success(), "{}: {}", path.display(), stderr(&out));
-            assert!(report.contains("closed cleanly: yes"), "{}: {report}", path.display());
-            assert!(report.contains("damage: none"), "{}: {report}", path.display());
+            assert!(
+                report.contains("closed cleanly: yes"),
+                "{}: {report}",
+                path.display()
+            );
+            assert!(
+                report.contains("damage: none"),
+                "{}: {report}",
+                path.display()
+            );
         }
     }
     assert!(logs >= 8, "{logs} log files in {}", flight.display());

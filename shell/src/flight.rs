@@ -20,6 +20,7 @@ use skyframe_core::devices::gps::{GpsConfig, GpsFix};
 use skyframe_core::devices::imu::ImuSample;
 use skyframe_core::estimation::EstimatorConfig;
 use skyframe_core::executive::Task;
+use skyframe_core::link::ingress::IngressCounters;
 use skyframe_core::link::messages::FlightMode;
 use skyframe_core::link::params::ParamTable;
 use skyframe_core::schedule::FrameTable;
@@ -237,6 +238,7 @@ pub fn fly<P: Platform>(
     })?;
     // The link: key, run id, socket thread.
     let io_stop = Arc::new(AtomicBool::new(false));
+    let ingress = Arc::new(IngressCounters::new());
     let mut link = None;
     if let Some(plan_link) = &plan.link {
         let (key_file, key) = match &plan_link.key {
@@ -251,9 +253,15 @@ pub fn fly<P: Platform>(
             }
         };
         let run_id = crate::link::new_run_id()?;
+        let screen = || crate::link::Screen {
+            key: key.clone(),
+            vehicle_id: plan_link.vehicle_id,
+            ingress: Arc::clone(&ingress),
+        };
         let spawned = crate::link::spawn_link(
             plan_link.commands,
             plan_link.telemetry.clone(),
+            screen(),
             Arc::clone(&io_stop),
         );
         let spawned = match spawned {
@@ -262,6 +270,7 @@ pub fn fly<P: Platform>(
                 let spawned = crate::link::spawn_link(
                     any,
                     plan_link.telemetry.clone(),
+                    screen(),
                     Arc::clone(&io_stop),
                 )?;
                 log::warn!("{e}: listening for commands on a free port instead");
@@ -504,6 +513,7 @@ pub fn fly<P: Platform>(
                 watchdog: &watchdog_out,
                 health_period_ms: &health_period_ms,
                 stop: plan.options.stop,
+                ingress: Some(&ingress),
             },
         ));
         link_io = Some((key_file, run_id, join, io, local));
@@ -590,7 +600,7 @@ pub fn fly<P: Platform>(
         let _ = join.join();
         let counters = telemetry_task
             .as_ref()
-            .map(|t| *t.counters())
+            .map(|t| t.counters())
             .unwrap_or_default();
         LinkReport {
             key_file,

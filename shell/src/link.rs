@@ -3,7 +3,8 @@
 //! to send commands from where telemetry comes from). Its thread moves datagrams between the
 //! socket and two rings; the telemetry task (core) never touches a socket.
 
-use skyframe_core::link::auth::LinkKey;
+use skyframe_core::link::auth::{LinkKey, screen_command};
+use skyframe_core::link::ingress::IngressCounters;
 use skyframe_core::tasks::telemetry::DatagramPort;
 use std::io::Read;
 use std::net::{SocketAddr, UdpSocket};
@@ -11,7 +12,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::thread::JoinHandle;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 /// Where the link listens and sends when nothing else is said; `skyframe-ground` listens on
 /// the telemetry port by default.
@@ -133,11 +134,21 @@ impl DatagramPort for RingDatagrams {
     }
 }
 
+/// What the socket thread checks before it queues a datagram for the telemetry task: the
+/// command gate's stateless checks ([`screen_command`]) and each source's share.
+pub struct Screen {
+    pub key: LinkKey,
+    pub vehicle_id: u16,
+    /// Counts what is dropped here; the telemetry task reports them with its own.
+    pub ingress: Arc<IngressCounters>,
+}
+
 /// Binds the command socket and starts its thread; ends when `stop` is set, after sending
 /// what is queued.
 pub fn spawn_link(
     bind: SocketAddr,
     telemetry: Vec<SocketAddr>,
+    screen: Screen,
     stop: Arc<AtomicBool>,
 ) -> Result<(RingDatagrams, JoinHandle<()>, Arc<LinkIo>), String> {
     let socket = UdpSocket::bind(bind).map_err(|e| format!("--commands {bind}: {e}"))?;
@@ -156,7 +167,11 @@ pub fn spawn_link(
     let join = std::thread::Builder::new()
         .name("link".into())
         .stack_size(256 * 1024)
-        .spawn(move || link_thread(&socket, &telemetry, rx_in, tx_out, &thread_io, &stop))
+        .spawn(move || {
+            link_thread(
+                &socket, &telemetry, &screen, rx_in, tx_out, &thread_io, &stop,
+            )
+        })
         .map_err(|e| format!("cannot start the link thread: {e}"))?;
     Ok((
         RingDatagrams {
@@ -168,9 +183,14 @@ pub fn spawn_link(
     ))
 }
 
+/// Datagrams received in a row before the queued telemetry is sent: under a flood the
+/// socket is drained in batches and telemetry still goes out between them.
+const RECEIVE_BATCH: usize = 256;
+
 fn link_thread(
     socket: &UdpSocket,
     telemetry: &[SocketAddr],
+    screen: &Screen,
     mut rx: rtrb::Producer<u8>,
     mut tx: rtrb::Consumer<u8>,
     io: &LinkIo,
@@ -178,12 +198,26 @@ fn link_thread(
 ) {
     let mut buf = [0u8; MAX_DATAGRAM + 1];
     let mut last_sender: Option<SocketAddr> = None;
+    let mut shares = SourceShares::new();
     loop {
         let stopping = stop.load(Ordering::Acquire);
-        if let Ok((n, from)) = socket.recv_from(&mut buf) {
+        for _ in 0..RECEIVE_BATCH {
+            let Ok((n, from)) = socket.recv_from(&mut buf) else {
+                break;
+            };
             io.datagrams_in.fetch_add(1, Ordering::Relaxed);
-            last_sender = Some(from);
+            // Cheapest first: a source over its share costs no HMAC.
+            if !shares.take(from, Instant::now()) {
+                screen.ingress.rate_limited();
+                continue;
+            }
             let datagram = buf.get(..n).unwrap_or_default();
+            if let Err(reason) = screen_command(datagram, &screen.key, screen.vehicle_id) {
+                screen.ingress.screened_out(reason);
+                continue;
+            }
+            // Only an authentic command decides where replies go.
+            last_sender = Some(from);
             match (u16::try_from(n), rx.write_chunk_uninit(2 + n)) {
                 (Ok(len), Ok(chunk)) => {
                     chunk.fill_from_iter(
@@ -227,10 +261,88 @@ fn link_thread(
     }
 }
 
+/// Datagrams a source may send per second before the rest are dropped unread, and the
+/// burst it may send at once: far above a ground station's few commands a second (and its
+/// resends), far below a flood.
+const SHARE_PER_S: f64 = 100.0;
+const SHARE_BURST: f64 = 100.0;
+/// Sources remembered; past this the longest silent one is forgotten.
+const SOURCES_KEPT: usize = 256;
+
+/// A token bucket per source address, so one sender cannot starve the others. (A forger
+/// who spoofs the ground's own address and port shares its bucket: UDP cannot tell them
+/// apart; the HMAC still refuses every forgery.)
+struct SourceShares {
+    buckets: std::collections::HashMap<SocketAddr, (f64, Instant)>,
+}
+
+impl SourceShares {
+    fn new() -> Self {
+        Self {
+            buckets: std::collections::HashMap::new(),
+        }
+    }
+
+    /// Whether `from` may have one more datagram read now.
+    fn take(&mut self, from: SocketAddr, now: Instant) -> bool {
+        if !self.buckets.contains_key(&from) && self.buckets.len() >= SOURCES_KEPT {
+            let oldest = self
+                .buckets
+                .iter()
+                .min_by_key(|(_, (_, last))| *last)
+                .map(|(a, _)| *a);
+            if let Some(oldest) = oldest {
+                self.buckets.remove(&oldest);
+            }
+        }
+        let (tokens, last) = self.buckets.entry(from).or_insert((SHARE_BURST, now));
+        let refill = now.saturating_duration_since(*last).as_secs_f64() * SHARE_PER_S;
+        *tokens = (*tokens + refill).min(SHARE_BURST);
+        *last = now;
+        if *tokens >= 1.0 {
+            *tokens -= 1.0;
+            true
+        } else {
+            false
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+    use skyframe_core::link::auth::LinkCounters;
+    use skyframe_core::link::frame::{Envelope, encode_datagram};
+    use skyframe_core::link::messages::{Command, Message};
     use std::os::unix::fs::PermissionsExt;
+
+    #[test]
+    fn each_source_gets_its_share_and_a_flood_does_not_take_anothers() {
+        let start = Instant::now();
+        let mut shares = SourceShares::new();
+        let flood: SocketAddr = "127.0.0.1:9".parse().expect("addr");
+        let ground: SocketAddr = "127.0.0.1:47200".parse().expect("addr");
+        // 10 000 datagrams in the same instant: the burst passes, the rest do not.
+        let passed = (0..10_000).filter(|_| shares.take(flood, start)).count();
+        assert_eq!(passed, SHARE_BURST as usize);
+        // Another source is untouched by the flood.
+        assert!(shares.take(ground, start));
+        // A second later the flood has a second's share again, no more.
+        let later = start + Duration::from_secs(1);
+        let passed = (0..10_000).filter(|_| shares.take(flood, later)).count();
+        assert_eq!(passed, SHARE_PER_S as usize);
+    }
+
+    #[test]
+    fn forgotten_sources_make_room_for_new_ones() {
+        let start = Instant::now();
+        let mut shares = SourceShares::new();
+        for port in 0..(SOURCES_KEPT as u16 + 10) {
+            let at = start + Duration::from_millis(u64::from(port));
+            assert!(shares.take(SocketAddr::from(([127, 0, 0, 1], port)), at));
+        }
+        assert_eq!(shares.buckets.len(), SOURCES_KEPT);
+    }
 
     #[test]
     fn keys_load_from_hex_or_raw_and_readable_ones_are_refused() {
@@ -264,9 +376,17 @@ mod tests {
         ground
             .set_read_timeout(Some(Duration::from_secs(2)))
             .expect("timeout");
+        let key = LinkKey::new([3; 32]);
+        let ingress = Arc::new(IngressCounters::new());
+        let screen = Screen {
+            key: key.clone(),
+            vehicle_id: 7,
+            ingress: Arc::clone(&ingress),
+        };
         let (mut port, join, io) = spawn_link(
             "127.0.0.1:0".parse().expect("addr"),
             vec![ground.local_addr().expect("addr")],
+            screen,
             Arc::clone(&stop),
         )
         .expect("link");
@@ -280,12 +400,35 @@ mod tests {
             assert_eq!(&buf[..n], &[i; 100][..]);
             from = Some(addr);
         }
-        // The ground answers to where telemetry came from: the command socket.
+        // The ground answers to where telemetry came from: the command socket. A forgery
+        // (another key) and junk are screened out and counted; the signed command arrives.
+        let command = |key: &LinkKey, sequence: u32| {
+            let envelope = Envelope {
+                vehicle_id: 7,
+                sender_id: 1,
+                run_id: 1,
+                sequence,
+                t_ns: 0,
+            };
+            let mut out = [0u8; 256];
+            let n = encode_datagram(
+                &envelope,
+                &Message::Command(Command::Stop),
+                Some(key),
+                &mut out,
+            )
+            .expect("encodes");
+            out[..n].to_vec()
+        };
+        let vehicle = from.expect("vehicle");
         ground
-            .send_to(b"command", from.expect("vehicle"))
+            .send_to(&command(&LinkKey::new([4; 32]), 1), vehicle)
             .expect("send");
+        ground.send_to(b"junk", vehicle).expect("send");
+        let genuine = command(&key, 2);
+        ground.send_to(&genuine, vehicle).expect("send");
         let start = std::time::Instant::now();
-        let mut got = [0u8; 64];
+        let mut got = [0u8; 256];
         let n = loop {
             if let Some(n) = port.receive(&mut got) {
                 break n;
@@ -296,10 +439,18 @@ mod tests {
             );
             std::thread::sleep(Duration::from_millis(2));
         };
-        assert_eq!(&got[..n], b"command");
+        assert_eq!(&got[..n], &genuine[..]);
+        assert!(
+            port.receive(&mut got).is_none(),
+            "only the genuine one is queued"
+        );
         stop.store(true, Ordering::Release);
         join.join().expect("thread");
         assert_eq!(io.datagrams_out.load(Ordering::Relaxed), 20);
-        assert_eq!(io.datagrams_in.load(Ordering::Relaxed), 1);
+        assert_eq!(io.datagrams_in.load(Ordering::Relaxed), 3);
+        let counted = ingress.added_to(&LinkCounters::default());
+        assert_eq!(counted.bad_signature, 1);
+        assert_eq!(counted.malformed, 1);
+        assert_eq!(counted.received, 2);
     }
 }

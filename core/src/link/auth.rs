@@ -242,10 +242,13 @@ pub struct LinkCounters {
     /// sender, not the gate).
     pub telemetry_sent: u32,
     pub telemetry_send_failed: u32,
+    /// Dropped unread by the shell because their source sent more than its share
+    /// ([`crate::link::ingress`]): a flood, counted, never queued.
+    pub rate_limited: u32,
 }
 
 /// Number of `u32` counters on the wire.
-pub const LINK_COUNTERS: usize = 15;
+pub const LINK_COUNTERS: usize = 16;
 
 impl LinkCounters {
     /// The counters in wire order (`docs/link-protocol.md`), which is also the column order of
@@ -267,12 +270,14 @@ impl LinkCounters {
             self.wrong_type,
             self.telemetry_sent,
             self.telemetry_send_failed,
+            self.rate_limited,
         ]
     }
 
     /// Rejected commands of every kind.
     pub fn rejected(&self) -> u32 {
         [
+            self.rate_limited,
             self.bad_crc,
             self.malformed,
             self.wrong_vehicle,
@@ -310,6 +315,7 @@ impl LinkCounters {
             wrong_type: r.u32()?,
             telemetry_sent: r.u32()?,
             telemetry_send_failed: r.u32()?,
+            rate_limited: r.u32()?,
         })
     }
 
@@ -329,6 +335,32 @@ impl LinkCounters {
         };
         *counter = counter.saturating_add(1);
     }
+}
+
+/// The checks that need no state: a whole datagram, a command, for this vehicle, signed
+/// with our key. The gate runs them first; the shell's socket thread runs the same ones
+/// before it queues anything, so a flood of forgeries never reaches the task
+/// ([`crate::link::ingress`]).
+pub fn screen_command<'d>(
+    datagram: &'d [u8],
+    key: &LinkKey,
+    vehicle_id: u16,
+) -> Result<frame::Frame<'d>, RejectReason> {
+    let frame = frame::parse_frame(datagram).map_err(|e| match e {
+        FrameError::BadCrc => RejectReason::BadCrc,
+        _ => RejectReason::Malformed,
+    })?;
+    if !message_type::is_command(frame.header.message_type) {
+        return Err(RejectReason::Malformed);
+    }
+    if frame.header.envelope.vehicle_id != vehicle_id {
+        return Err(RejectReason::WrongVehicle);
+    }
+    let tag = frame.tag.ok_or(RejectReason::Unsigned)?;
+    if !verify(key, frame.signed_part, tag) {
+        return Err(RejectReason::BadSignature);
+    }
+    Ok(frame)
 }
 
 /// Why the gate dropped a datagram, in the order the checks run.
@@ -456,24 +488,9 @@ impl CommandGate {
 
     fn check(&mut self, datagram: &[u8], params: &ParamTable) -> Result<AcceptedCommand, Rejected> {
         let drop = |reason| Rejected { reason, ack: None };
-        let frame = frame::parse_frame(datagram).map_err(|e| {
-            drop(match e {
-                FrameError::BadCrc => RejectReason::BadCrc,
-                _ => RejectReason::Malformed,
-            })
-        })?;
+        let frame = screen_command(datagram, &self.key, self.config.vehicle_id).map_err(drop)?;
         let header = frame.header;
         let envelope = header.envelope;
-        if !message_type::is_command(header.message_type) {
-            return Err(drop(RejectReason::Malformed));
-        }
-        if envelope.vehicle_id != self.config.vehicle_id {
-            return Err(drop(RejectReason::WrongVehicle));
-        }
-        let tag = frame.tag.ok_or(drop(RejectReason::Unsigned))?;
-        if !verify(&self.key, frame.signed_part, tag) {
-            return Err(drop(RejectReason::BadSignature));
-        }
         if envelope.run_id != self.config.run_id {
             return Err(drop(RejectReason::WrongRun));
         }

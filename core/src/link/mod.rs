@@ -9,10 +9,12 @@
 //! - [`messages`]: the typed messages in both directions;
 //! - [`params`]: the table of parameters the ground can read and set;
 //! - [`auth`]: keys, tags, replay windows and the [`CommandGate`];
+//! - [`ingress`]: what the shell drops before queueing (screened out, rate limited);
 //! - [`telemetry`]: when the vehicle sends what, and its datagrams' envelopes.
 
 pub mod auth;
 pub mod frame;
+pub mod ingress;
 pub mod messages;
 pub mod params;
 pub mod telemetry;

@@ -309,7 +309,7 @@ fn any_executive_status() -> impl Strategy<Value = ExecutiveStatus> {
         any::<u8>(),
         any::<u32>(),
         any::<[u64; 7]>(),
-        any::<[u32; 15]>(),
+        any::<[u32; 16]>(),
     )
         .prop_map(
             |(times, mode, task_count, health_period_ms, f, l)| ExecutiveStatus {
@@ -343,6 +343,7 @@ fn any_executive_status() -> impl Strategy<Value = ExecutiveStatus> {
                     wrong_type: l[12],
                     telemetry_sent: l[13],
                     telemetry_send_failed: l[14],
+                    rate_limited: l[15],
                 },
             },
         )
@@ -1150,7 +1151,7 @@ fn payload_sizes_match_the_spec_table() {
     let c = |m| payload_len(Message::Command(m));
     assert_eq!(
         t(Telemetry::ExecutiveStatus(ExecutiveStatus::default())),
-        138
+        142
     );
     assert_eq!(
         t(Telemetry::TaskStatus(TaskStatus {

@@ -22,8 +22,9 @@ use super::tap::Tap;
 use super::task_log::TaskLog;
 use crate::comm::{LatestSlot, RecordSink};
 use crate::executive::{Task, TaskContext, TaskFault};
-use crate::link::auth::{CommandGate, GateConfig, LinkKey};
+use crate::link::auth::{CommandGate, GateConfig, LinkCounters, LinkKey};
 use crate::link::frame::{Envelope, MAX_DATAGRAM_LEN, encode_datagram};
+use crate::link::ingress::IngressCounters;
 use crate::link::messages::{
     AckResult, Command, CommandAck, ExecutiveStatus, FlightMode, HorizonAttitude, Message, Name,
     TaskData, TaskFormat, TaskStatus, Telemetry, Value,
@@ -60,6 +61,8 @@ pub struct LinkShared<'a> {
     pub health_period_ms: &'a Cell<u32>,
     /// Set by a `Stop` command: the shell ends the run cleanly between frames.
     pub stop: &'a AtomicBool,
+    /// What the shell's socket thread dropped before queueing (`None` in tests without one).
+    pub ingress: Option<&'a IngressCounters>,
 }
 
 pub struct TelemetryConfig {
@@ -74,10 +77,10 @@ pub struct TelemetryConfig {
 /// `link.bin`, once a second and at the end: the link's counters (`LinkCounters`, in wire
 /// order), so what was refused and why is in the flight's log, not only on the ground.
 pub const LINK_LOG: LogFormat = LogFormat::new(
-    "%u,%u,%u,%u,%u,%u,%u,%u,%u,%u,%u,%u,%u,%u,%u",
+    "%u,%u,%u,%u,%u,%u,%u,%u,%u,%u,%u,%u,%u,%u,%u,%u",
     "received,accepted,bad_crc,malformed,wrong_vehicle,unsigned,bad_signature,wrong_run,\
      replayed,too_many_senders,out_of_range,unknown_param,wrong_type,telemetry_sent,\
-     telemetry_send_failed",
+     telemetry_send_failed,rate_limited",
 );
 const LINK_INDEX: u8 = 1;
 const LINK_LOG_INTERVAL_NS: u64 = 1_000_000_000;
@@ -150,8 +153,13 @@ impl<'a, P: DatagramPort, S: RecordSink> TelemetryTask<'a, P, S> {
         }
     }
 
-    pub fn counters(&self) -> &crate::link::auth::LinkCounters {
-        self.gate.counters()
+    /// Every datagram the vehicle received and what became of it: the gate's counters with
+    /// the socket thread's drops added.
+    pub fn counters(&self) -> LinkCounters {
+        match self.shared.ingress {
+            Some(ingress) => ingress.added_to(self.gate.counters()),
+            None => *self.gate.counters(),
+        }
     }
 
     fn send(&mut self, now_ns: u64, telemetry: Telemetry, reply: bool) {
@@ -348,7 +356,7 @@ impl<'a, P: DatagramPort, S: RecordSink> TelemetryTask<'a, P, S> {
 
     fn log_counters(&mut self, cx: &TaskContext<'_>) {
         self.logged_ns = Some(cx.now_ns);
-        let counters = self.gate.counters().as_array();
+        let counters = self.counters().as_array();
         self.log.record(cx, LINK_INDEX, &self.log_format, |w| {
             counters.iter().fold(w, |w, c| w.u32(*c))
         });
@@ -424,7 +432,7 @@ impl<'a, P: DatagramPort, S: RecordSink> TelemetryTask<'a, P, S> {
             task_count: self.table.tasks.len() as u8,
             health_period_ms,
             frames: cx.health.frames,
-            link: *self.gate.counters(),
+            link: self.counters(),
         }
     }
 

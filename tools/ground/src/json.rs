@@ -176,6 +176,7 @@ pub fn telemetry_fields(
                     "unknown_param": l.unknown_param, "wrong_type": l.wrong_type,
                     "telemetry_sent": l.telemetry_sent,
                     "telemetry_send_failed": l.telemetry_send_failed,
+                    "rate_limited": l.rate_limited,
                 }),
             );
         }

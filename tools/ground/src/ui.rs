@@ -692,10 +692,11 @@ impl App {
                         l.replayed,
                     )),
                     Line::from(format!(
-                        "                out of range {} unknown param {} wrong type {}; telemetry sent {} failed {}",
+                        "                out of range {} unknown param {} wrong type {} rate-limited {}; telemetry sent {} failed {}",
                         l.out_of_range,
                         l.unknown_param,
                         l.wrong_type,
+                        l.rate_limited,
                         l.telemetry_sent,
                         l.telemetry_send_failed
                     )),
