@@ -222,3 +222,112 @@ fn a_stop_while_a_task_is_stuck_ends_the_run_within_a_second_with_the_logs_whole
     }
     assert!(logs >= 8, "{logs} log files in {}", flight.display());
 }
+
+/// A flight on a 400 kB tmpfs that a 300 kB ballast file has nearly filled: logging is
+/// suspended when the disk fills, the flight goes on, and when the ballast is deleted
+/// logging resumes. Every file is whole (no half-written record, each closed with End
+/// Data), the IMU log has records from after the space came back, and the run says how much
+/// was lost (exit 3). Needs root for the mount (CI and the dev machines run as root).
+#[test]
+fn a_full_disk_suspends_logging_which_resumes_when_space_returns() {
+    let dir = scratch("hostile-disk");
+    let mount = dir.join("small");
+    std::fs::create_dir_all(&mount).expect("dir");
+    let mounted = std::process::Command::new("mount")
+        .args(["-t", "tmpfs", "-o", "size=400k", "tmpfs"])
+        .arg(&mount)
+        .status()
+        .expect("mount runs");
+    assert!(mounted.success(), "mounting a tmpfs needs root");
+    struct Unmount(std::path::PathBuf);
+    impl Drop for Unmount {
+        fn drop(&mut self) {
+            let _ = std::process::Command::new("umount").arg(&self.0).status();
+        }
+    }
+    let _unmount = Unmount(mount.clone());
+    let ballast = mount.join("ballast");
+    std::fs::write(&ballast, vec![0u8; 300 * 1024]).expect("ballast");
+
+    let child = skyframe()
+        .args([
+            "sim",
+            "--duration",
+            "9",
+            "--priority",
+            "0",
+            "--no-mlockall",
+            "--no-link",
+            "--json",
+        ])
+        .arg("--log-dir")
+        .arg(mount.join("flights"))
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("skyframe sim");
+    // About 44 kB/s: the last 100 kB are gone in 2-3 s.
+    std::thread::sleep(Duration::from_secs(4));
+    std::fs::remove_file(&ballast).expect("delete the ballast");
+    let freed_wall = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .expect("clock")
+        .as_secs_f64();
+    let out = child.wait_with_output().expect("exits");
+    let text = stderr(&out);
+    assert_eq!(out.status.code(), Some(3), "{text}");
+    assert!(
+        text.contains("write failed") && text.contains("suspended"),
+        "{text}"
+    );
+    assert!(text.contains("writing again"), "{text}");
+    let line = text
+        .lines()
+        .find(|l| l.contains("logging was lost"))
+        .unwrap_or_else(|| panic!("{text}"));
+    assert!(line.contains("records"), "{line}");
+
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).expect("report");
+    let lost: u64 = report["log_streams"]
+        .as_array()
+        .expect("streams")
+        .iter()
+        .map(|s| s["records_lost"].as_u64().unwrap_or(0))
+        .sum();
+    assert!(lost > 0, "{}", report["log_streams"]);
+    eprintln!("disk full: {line}");
+    let flight = std::path::PathBuf::from(report["flight_dir"].as_str().expect("dir"));
+    let log_tool = skyframe_tests::binary("skyframe-log", "skyframe-log");
+    for entry in std::fs::read_dir(&flight).expect("flight") {
+        let path = entry.expect("entry").path();
+        if path.extension().is_none_or(|e| e != "bin") {
+            continue;
+        }
+        let out = std::process::Command::new(&log_tool)
+            .arg("info")
+            .arg(&path)
+            .output()
+            .expect("skyframe-log info");
+        let info = String::from_utf8_lossy(&out.stdout);
+        assert!(info.contains("damage: none"), "{}: {info}", path.display());
+        assert!(
+            info.contains("closed cleanly: yes"),
+            "{}: {info}",
+            path.display()
+        );
+    }
+    // The IMU logged again after the space came back (log TIME is wall-clock in real time).
+    let imu = skyframe_logtable::load_stream(&flight.join("imu.bin"), |p| panic!("{p:?}"))
+        .expect("imu log");
+    let last_s = imu
+        .tables
+        .values()
+        .flat_map(|t| t.times_ns.iter())
+        .max()
+        .map(|&t| t as f64 * 1e-9)
+        .expect("records");
+    assert!(
+        last_s > freed_wall + 1.0,
+        "last IMU record {last_s}, space back at {freed_wall}"
+    );
+}

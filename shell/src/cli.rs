@@ -494,7 +494,7 @@ fn run<P: Platform>(platform: &P, command: Command) -> Result<ExitCode, String> 
                 print!("{}", render_flight(&report));
                 print!("{}", crate::score::render_score(&score));
             }
-            Ok(ExitCode::SUCCESS)
+            Ok(logging_lost_exit(&report))
         }
         Command::Score(args) => {
             if !args.flight_dir.is_dir() {
@@ -569,7 +569,31 @@ fn print_flight(report: &FlightReport, json: bool) -> Result<ExitCode, String> {
     } else {
         print!("{}", render_flight(report));
     }
-    Ok(ExitCode::SUCCESS)
+    Ok(logging_lost_exit(report))
+}
+
+/// Exit code of a flight that lost log records (a full disk): README, exit codes.
+pub const EXIT_LOGGING_LOST: u8 = 3;
+
+/// [`EXIT_LOGGING_LOST`] with one line on stderr saying how much, if any stream lost
+/// records to a failed write; success otherwise. (Records a full ring dropped are reported in
+/// the summary but are not a logging failure of this kind.)
+fn logging_lost_exit(report: &FlightReport) -> ExitCode {
+    let lost: Vec<String> = report
+        .log_streams
+        .iter()
+        .filter(|s| s.records_lost > 0 || s.failed)
+        .map(|s| format!("{} {} records", s.name, s.records_lost))
+        .collect();
+    if lost.is_empty() {
+        return ExitCode::SUCCESS;
+    }
+    eprintln!(
+        "skyframe: logging was lost (disk full or write errors): {}; flight directory {}",
+        lost.join(", "),
+        report.flight_dir.display()
+    );
+    ExitCode::from(EXIT_LOGGING_LOST)
 }
 
 /// Scores the flight in `flight_dir` and writes `score.json` beside its logs, so a flight

@@ -131,6 +131,8 @@ pub struct StreamReport {
     pub records_dropped: u64,
     pub records_lost: u64,
     pub failed: bool,
+    /// Times a write failed (disk full) and the stream waited to write again.
+    pub suspensions: u32,
 }
 
 /// One device at the end of the flight: its port and its decoder.
@@ -636,6 +638,7 @@ pub fn fly<P: Platform>(
                 records_dropped: status.records_dropped.load(Ordering::Relaxed),
                 records_lost: status.records_lost.load(Ordering::Relaxed),
                 failed: status.failed.load(Ordering::Relaxed),
+                suspensions: status.suspensions.load(Ordering::Relaxed),
             })
             .collect(),
         devices,
@@ -719,11 +722,12 @@ pub fn render_flight(report: &FlightReport) -> String {
     out += &format!("flight directory: {}\n", report.flight_dir.display());
     for s in &report.log_streams {
         out += &format!(
-            "log {}: {} records written, {} dropped (ring full), {} lost{}\n",
+            "log {}: {} records written, {} dropped (ring full), {} lost ({} write failures){}\n",
             s.name,
             s.records_written,
             s.records_dropped,
             s.records_lost,
+            s.suspensions,
             if s.failed {
                 " — WRITE FAILED, logging stopped"
             } else {

@@ -61,10 +61,17 @@ pub struct StreamStatus {
     pub bytes_written: AtomicU64,
     /// Records the producer could not fit into the ring.
     pub records_dropped: AtomicU64,
-    /// Records drained after the stream failed, and so never written.
+    /// Records that never reached the disk: drained while the stream was suspended or had
+    /// failed, or in the buffer a failed write took with it.
     pub records_lost: AtomicU64,
-    /// Set once a write failed; the stream writes nothing more.
+    /// Set once the stream can write nothing more (a text stream's write failed, or a file
+    /// could not be closed).
     pub failed: AtomicBool,
+    /// A write failed (a full disk): the stream is suspended and retries every
+    /// [`RESUME_RETRY`]; cleared when it writes again.
+    pub suspended: AtomicBool,
+    /// Times the stream was suspended.
+    pub suspensions: AtomicU32,
     /// Files this stream has written (1 + rotations).
     pub files: AtomicU32,
     /// Bytes in the ring that started no record (a producer bug), skipped.
@@ -133,6 +140,13 @@ struct Drain {
     last_time: [u8; 8],
     /// A Begin Data was written and its End not yet: a task is logging into this stream.
     section_open: bool,
+    /// Bytes of the current file that reached the OS whole (at the last successful flush):
+    /// what a failed write truncates back to, so no record is ever left half-written.
+    durable_len: u64,
+    /// Records written into the buffer since that flush.
+    unflushed_records: u64,
+    /// Suspended since (a write failed); the file is kept, positioned at `durable_len`.
+    suspended: Option<(Instant, File)>,
     /// Some: this stream is written as CSV text instead of binary.
     text: Option<TextStream>,
 }
@@ -145,6 +159,9 @@ pub enum StreamMode {
     /// `<name>.<index>.csv`, the very lines `skyframe-log to-csv` prints.
     Text,
 }
+
+/// A suspended stream (its disk was full) tries to write again this often.
+pub const RESUME_RETRY: Duration = Duration::from_secs(1);
 
 /// Starts the writer thread. Add streams with [`LogWriter::stream`] before `start`.
 pub struct LogWriter {
@@ -216,6 +233,9 @@ impl LogWriter {
             sequence: 0,
             last_time: [0; 8],
             section_open: false,
+            durable_len: 0,
+            unflushed_records: 0,
+            suspended: None,
             text: (mode == StreamMode::Text).then(|| TextStream::new(name)),
         });
         LogStream {
@@ -341,12 +361,103 @@ impl Drain {
         self.status.files.fetch_add(1, Ordering::Relaxed);
         files.push(path);
         self.file = Some(w);
+        self.durable_len = 0;
         Ok(())
+    }
+
+    /// A write or flush failed (a full disk, most likely): drop what the buffer held, cut
+    /// the file back to its last whole record, count the records lost, and keep the file to
+    /// try again in [`RESUME_RETRY`]. The flight goes on.
+    fn suspend(&mut self, error: &std::io::Error) {
+        let lost = self.unflushed_records;
+        self.status.records_lost.fetch_add(lost, Ordering::Relaxed);
+        self.status.records_written.fetch_sub(
+            lost.min(self.status.records_written.load(Ordering::Relaxed)),
+            Ordering::Relaxed,
+        );
+        self.unflushed_records = 0;
+        self.file_bytes = self.durable_len;
+        let parked = self.file.take().and_then(|w| {
+            // The buffer's bytes are not written again (into_parts does not flush).
+            let (mut file, _lost) = w.into_parts();
+            file.set_len(self.durable_len)
+                .and_then(|()| std::io::Seek::seek(&mut file, std::io::SeekFrom::End(0)))
+                .ok()
+                .map(|_| file)
+        });
+        if self.suspended.is_none() {
+            self.status.suspensions.fetch_add(1, Ordering::Relaxed);
+            log::error!(
+                "log {}: write failed ({error}): suspended, {lost} records lost; retrying every \
+                 {} s",
+                self.name,
+                RESUME_RETRY.as_secs()
+            );
+        }
+        self.status.suspended.store(true, Ordering::Relaxed);
+        match parked {
+            Some(file) => self.suspended = Some((Instant::now(), file)),
+            None => {
+                // The file itself is unusable: nothing to resume into.
+                log::error!(
+                    "log {}: the file cannot be cut back: logging stopped",
+                    self.name
+                );
+                self.suspended = None;
+                self.status.failed.store(true, Ordering::Relaxed);
+            }
+        }
+    }
+
+    /// Suspended long enough: write into the kept file again (its declarations and a Begin
+    /// Data first if none of them reached it), and flush at once to find out whether there is
+    /// room. `false` while still suspended.
+    fn try_resume(&mut self) -> bool {
+        let Some((since, _)) = &self.suspended else {
+            return true;
+        };
+        if since.elapsed() < RESUME_RETRY {
+            return false;
+        }
+        let Some((_, file)) = self.suspended.take() else {
+            return false;
+        };
+        let mut w = BufWriter::with_capacity(64 * 1024, file);
+        let mut head = Vec::new();
+        if self.durable_len == 0 {
+            head.extend_from_slice(&self.declarations);
+            if self.section_open {
+                head.extend_from_slice(&marker(BEGIN_DATA, self.last_time));
+            }
+        }
+        let result = w.write_all(&head).and_then(|()| w.flush());
+        self.file = Some(w);
+        match result {
+            Ok(()) => {
+                self.file_bytes = self.durable_len + head.len() as u64;
+                self.durable_len = self.file_bytes;
+                self.status.suspended.store(false, Ordering::Relaxed);
+                log::warn!(
+                    "log {}: writing again ({} records lost in all)",
+                    self.name,
+                    self.status.records_lost.load(Ordering::Relaxed)
+                );
+                true
+            }
+            Err(e) => {
+                self.suspend(&e);
+                false
+            }
+        }
     }
 
     fn close(&mut self) -> std::io::Result<()> {
         if let Some(text) = self.text.as_mut() {
             text.close()?;
+        }
+        if let Some((_, file)) = self.suspended.take() {
+            // Cut back to whole records when it was suspended: all that is left is to sync.
+            return file.sync_all();
         }
         if let Some(mut w) = self.file.take() {
             let written = self.status.records_written.load(Ordering::Relaxed);
@@ -394,6 +505,7 @@ impl Drain {
         if let Some(w) = self.file.as_mut() {
             w.write_all(record)?;
         }
+        self.unflushed_records += 1;
         self.file_bytes += record.len() as u64;
         self.status
             .bytes_written
@@ -404,6 +516,7 @@ impl Drain {
                 w.write_all(&marker(END_DATA, self.last_time))?;
             }
             self.close()?;
+            self.unflushed_records = 0;
             self.sequence += 1;
             self.open(&config.dir, files)?;
         }
@@ -436,16 +549,24 @@ impl Drain {
                 Head::Record(len) => len,
             };
             let Some(record) = rest.get(..len) else { break };
-            if self.status.failed.load(Ordering::Relaxed) {
+            if self.status.failed.load(Ordering::Relaxed) || !self.try_resume() {
                 self.status.records_lost.fetch_add(1, Ordering::Relaxed);
+                // Declarations still count: a file resumed from nothing needs them.
+                if matches!(record.first(), Some(&FORMAT_DEFINITION | &FORMAT_COMMENT)) {
+                    self.declarations.extend_from_slice(record);
+                }
             } else if let Err(e) = self.write_record(record, config, files) {
-                log::error!(
-                    "log {}: write failed, logging stopped for this stream: {e}",
-                    self.name
-                );
-                self.status.failed.store(true, Ordering::Relaxed);
                 self.status.records_lost.fetch_add(1, Ordering::Relaxed);
-                self.file = None;
+                if self.text.is_some() {
+                    log::error!(
+                        "log {}: write failed, logging stopped for this stream: {e}",
+                        self.name
+                    );
+                    self.status.failed.store(true, Ordering::Relaxed);
+                    self.file = None;
+                } else {
+                    self.suspend(&e);
+                }
             }
             at += len;
         }
@@ -469,16 +590,24 @@ impl Drain {
                 }
             })
         });
-        if result.is_ok() && sync {
-            self.status.records_synced.store(written, Ordering::Relaxed);
+        if result.is_ok() {
+            self.durable_len = self.file_bytes;
+            self.unflushed_records = 0;
+            if sync {
+                self.status.records_synced.store(written, Ordering::Relaxed);
+            }
         }
         if let Err(e) = result {
-            log::error!(
-                "log {}: flush failed, logging stopped for this stream: {e}",
-                self.name
-            );
-            self.status.failed.store(true, Ordering::Relaxed);
-            self.file = None;
+            if self.text.is_some() {
+                log::error!(
+                    "log {}: flush failed, logging stopped for this stream: {e}",
+                    self.name
+                );
+                self.status.failed.store(true, Ordering::Relaxed);
+                self.file = None;
+            } else {
+                self.suspend(&e);
+            }
         }
     }
 }
