@@ -249,6 +249,27 @@ fn a_full_disk_suspends_logging_which_resumes_when_space_returns() {
     let ballast = mount.join("ballast");
     std::fs::write(&ballast, vec![0u8; 300 * 1024]).expect("ballast");
 
+    // Asked to, it refuses to fly a flight the disk cannot hold (9 s × ~46 kB/s > 100 kB).
+    let refused = skyframe()
+        .args([
+            "sim",
+            "--fast",
+            "--duration",
+            "9",
+            "--no-link",
+            "--require-log-space",
+        ])
+        .arg("--log-dir")
+        .arg(mount.join("flights"))
+        .output()
+        .expect("runs");
+    let text = stderr(&refused);
+    assert_eq!(refused.status.code(), Some(2), "{text}");
+    assert!(
+        text.contains("refusing to fly (--require-log-space)") && text.contains("kB free"),
+        "{text}"
+    );
+
     let child = skyframe()
         .args([
             "sim",
@@ -278,6 +299,11 @@ fn a_full_disk_suspends_logging_which_resumes_when_space_returns() {
     assert_eq!(out.status.code(), Some(3), "{text}");
     assert!(
         text.contains("write failed") && text.contains("suspended"),
+        "{text}"
+    );
+    // Warned at start, without --require-log-space.
+    assert!(
+        text.contains("kB free, but a 9 s flight logs about"),
         "{text}"
     );
     assert!(text.contains("writing again"), "{text}");

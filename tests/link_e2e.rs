@@ -5,7 +5,7 @@ use serde_json::Value;
 use skyframe_core::link::auth::LinkKey;
 use skyframe_core::link::frame::{Envelope, Verify, decode_datagram, encode_datagram};
 use skyframe_core::link::messages::{
-    AckResult, Command, Message, TaskData, Telemetry, Value as LinkValue,
+    AckResult, Command, LogHealth, Message, TaskData, Telemetry, Value as LinkValue,
 };
 use skyframe_core::schedule::SHIPPED;
 use skyframe_logtable::{load_stream, time_ns};
@@ -630,6 +630,9 @@ fn a_flood_of_forged_commands_does_not_lock_out_the_key_holder() {
     let deadline = Instant::now() + Duration::from_secs(5);
     while counters.is_none() && Instant::now() < deadline {
         if let Some((_, Telemetry::ExecutiveStatus(e))) = ground.next(Duration::from_millis(200)) {
+            // The log's health rides along: its disk's free space was measured.
+            assert_ne!(e.log.free_mib, LogHealth::UNKNOWN, "{:?}", e.log);
+            assert_eq!(e.log.records_lost, 0, "{:?}", e.log);
             counters = Some(e.link);
         }
     }

@@ -154,3 +154,47 @@ mod tests {
         assert_eq!(c.dequeue(), Some(1));
     }
 }
+
+/// The log writer's last word on the flight log (`LogHealth`), shared lock-free from the
+/// shell's writer thread to the telemetry task: three atomics, each read whole; a reader may
+/// see one update's free space beside the previous one's count, which no reader needs exact.
+#[derive(Debug)]
+pub struct LogHealthCell {
+    free_mib: core::sync::atomic::AtomicU32,
+    records_lost: core::sync::atomic::AtomicU32,
+    streams_suspended: core::sync::atomic::AtomicU8,
+}
+
+impl LogHealthCell {
+    pub const fn new() -> Self {
+        use core::sync::atomic::{AtomicU8, AtomicU32};
+        Self {
+            free_mib: AtomicU32::new(crate::link::messages::LogHealth::UNKNOWN),
+            records_lost: AtomicU32::new(0),
+            streams_suspended: AtomicU8::new(0),
+        }
+    }
+
+    pub fn set(&self, health: crate::link::messages::LogHealth) {
+        use core::sync::atomic::Ordering::Relaxed;
+        self.free_mib.store(health.free_mib, Relaxed);
+        self.records_lost.store(health.records_lost, Relaxed);
+        self.streams_suspended
+            .store(health.streams_suspended, Relaxed);
+    }
+
+    pub fn get(&self) -> crate::link::messages::LogHealth {
+        use core::sync::atomic::Ordering::Relaxed;
+        crate::link::messages::LogHealth {
+            free_mib: self.free_mib.load(Relaxed),
+            records_lost: self.records_lost.load(Relaxed),
+            streams_suspended: self.streams_suspended.load(Relaxed),
+        }
+    }
+}
+
+impl Default for LogHealthCell {
+    fn default() -> Self {
+        Self::new()
+    }
+}

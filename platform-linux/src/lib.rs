@@ -86,4 +86,15 @@ impl Platform for Linux {
     fn serial_opener(&self) -> SerialOpener {
         serial::open
     }
+
+    fn free_space_probe(&self) -> Option<skyframe_shell::platform::FreeSpaceProbe> {
+        Some(free_space)
+    }
+}
+
+/// Bytes an unprivileged process may still write where `path` is (`statvfs`: available
+/// blocks × fragment size).
+fn free_space(path: &std::path::Path) -> std::io::Result<u64> {
+    let stat = nix::sys::statvfs::statvfs(path).map_err(std::io::Error::from)?;
+    Ok(u64::from(stat.blocks_available()).saturating_mul(u64::from(stat.fragment_size())))
 }

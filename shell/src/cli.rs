@@ -129,6 +129,10 @@ pub struct FlightArgs {
     /// at most 10000).
     #[arg(long, default_value_t = 200, value_parser = clap::value_parser!(u64).range(0..=10_000))]
     pub timer_check_ms: u64,
+    /// Refuse to fly when the log's disk has less free space than the flight is expected to
+    /// log (about 46 kB/s for the whole programmed duration); default: warn and fly.
+    #[arg(long)]
+    pub require_log_space: bool,
     /// Refuse to fly when the timer check finds wake-ups later than the frame margin
     /// (default: warn and fly).
     #[arg(long)]
@@ -469,12 +473,14 @@ fn run<P: Platform>(platform: &P, command: Command) -> Result<ExitCode, String> 
                 .extend(scenario_overruns(&scenario, SHIPPED.minor_frame_ns));
             let log = crate::vehicle::LogConfig::default();
             let devices = Devices::Sim(Box::new(world));
+            // Virtual time or not, the log is on this machine's disk.
+            let probe = platform.free_space_probe();
             let report = if args.fast {
                 // The timer check measures the OS timer, which virtual time does not use.
                 flight.timer_check_ms = 0;
-                fly_with(&VirtualTime, devices, &flight, &log)?
+                fly_with(&VirtualTime, devices, &flight, &log, probe)?
             } else {
-                fly_with(platform, devices, &flight, &log)?
+                fly_with(platform, devices, &flight, &log, probe)?
             };
             if !args.score {
                 return print_flight(&report, flight.json);
@@ -558,7 +564,7 @@ fn fly_and_report<P: Platform>(
     args: &FlightArgs,
     log: &crate::vehicle::LogConfig,
 ) -> Result<ExitCode, String> {
-    let report = fly_with(platform, devices, args, log)?;
+    let report = fly_with(platform, devices, args, log, platform.free_space_probe())?;
     print_flight(&report, args.json)
 }
 
@@ -625,6 +631,7 @@ fn fly_with<P: Platform>(
     devices: Devices<'_>,
     args: &FlightArgs,
     log: &crate::vehicle::LogConfig,
+    free_space: Option<crate::platform::FreeSpaceProbe>,
 ) -> Result<FlightReport, String> {
     let faults = fault_plan(&SHIPPED, &args.inject_overrun)?;
     let stop = stop_flag()?;
@@ -633,7 +640,11 @@ fn fly_with<P: Platform>(
         &SHIPPED,
         FlightPlan {
             log_dir: args.log_dir.as_deref().unwrap_or(&log.dir),
-            log: LogSettings::from_config(log, &args.text_log),
+            log: LogSettings {
+                free_space,
+                require_space: args.require_log_space,
+                ..LogSettings::from_config(log, &args.text_log)
+            },
             mission: args
                 .mission
                 .as_deref()

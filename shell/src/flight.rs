@@ -13,6 +13,7 @@ use crate::timing_log::TimingLog;
 use crate::vehicle::VehicleConfig;
 use serde::Serialize;
 use skyframe_core::comm::LatestSlot;
+use skyframe_core::comm::LogHealthCell;
 use skyframe_core::control::mission::Mission;
 use skyframe_core::devices::DecoderStats;
 use skyframe_core::devices::gps::SentenceKind;
@@ -108,6 +109,10 @@ pub struct LogSettings {
     pub rotate_bytes: u64,
     pub flush_every: std::time::Duration,
     pub fsync_every: std::time::Duration,
+    /// How to measure the log's free space (the platform's; `None`: not checked).
+    pub free_space: Option<crate::platform::FreeSpaceProbe>,
+    /// Refuse to fly when the free space is less than the flight is expected to log.
+    pub require_space: bool,
 }
 
 impl LogSettings {
@@ -119,6 +124,8 @@ impl LogSettings {
             rotate_bytes: log.rotate_mb.saturating_mul(1024 * 1024),
             flush_every: std::time::Duration::from_millis(log.flush_ms),
             fsync_every: std::time::Duration::from_millis(log.fsync_ms),
+            free_space: None,
+            require_space: false,
         }
     }
 }
@@ -238,9 +245,11 @@ pub fn fly<P: Platform>(
             plan.log_dir.display()
         )
     })?;
+    check_log_space(&plan, &flight_dir)?;
     // The link: key, run id, socket thread.
     let io_stop = Arc::new(AtomicBool::new(false));
     let ingress = Arc::new(IngressCounters::new());
+    let log_health = Arc::new(LogHealthCell::new());
     let mut link = None;
     if let Some(plan_link) = &plan.link {
         let (key_file, key) = match &plan_link.key {
@@ -288,6 +297,8 @@ pub fn fly<P: Platform>(
             rotate_bytes: plan.log.rotate_bytes,
             flush_every: plan.log.flush_every,
             fsync_every: plan.log.fsync_every,
+            free_space: plan.log.free_space,
+            health: Some(Arc::clone(&log_health)),
             ..WriterConfig::new(flight_dir.clone())
         }),
         text: plan.log.text_streams.clone(),
@@ -516,6 +527,7 @@ pub fn fly<P: Platform>(
                 health_period_ms: &health_period_ms,
                 stop: plan.options.stop,
                 ingress: Some(&ingress),
+                log_health: Some(&log_health),
             },
         ));
         link_io = Some((key_file, run_id, join, io, local));
@@ -644,6 +656,44 @@ pub fn fly<P: Platform>(
         devices,
         link,
     })
+}
+
+/// What a flight logs per second, to check the free space at start against the programmed
+/// duration: 45.3 kB/s measured on the shipped schedule in simulation (`skyframe sim --fast
+/// --duration 100`: 4.53 MB, all streams, truth included), rounded up. CSV text streams are
+/// larger; each one named adds as much again, a generous bound.
+pub const LOG_BYTES_PER_S: f64 = 46_000.0;
+
+/// Free space where the flight logs against what it is expected to log: a warning, or (with
+/// `--require-log-space`) a refusal before anything flies. Skipped without a duration or a
+/// way to measure.
+fn check_log_space(plan: &FlightPlan<'_>, flight_dir: &Path) -> Result<(), String> {
+    let (Some(probe), Some(duration)) = (plan.log.free_space, plan.options.duration) else {
+        return Ok(());
+    };
+    let Ok(free) = probe(flight_dir) else {
+        return Ok(());
+    };
+    let rate = LOG_BYTES_PER_S * (1.0 + plan.log.text_streams.len() as f64);
+    let needed = rate * duration.as_secs_f64();
+    if (free as f64) >= needed {
+        return Ok(());
+    }
+    let message = format!(
+        "{}: {} kB free, but a {:.0} s flight logs about {:.0} kB ({:.0} kB/s)",
+        flight_dir.display(),
+        free / 1024,
+        duration.as_secs_f64(),
+        needed / 1024.0,
+        rate / 1024.0
+    );
+    if plan.log.require_space {
+        // Nothing was written yet: leave no empty flight directory behind.
+        let _ = std::fs::remove_dir(flight_dir);
+        return Err(format!("refusing to fly (--require-log-space): {message}"));
+    }
+    log::warn!("{message}: logging will stop when the disk is full and resume when space returns");
+    Ok(())
 }
 
 /// `port` is the serial port's path and status; `None` for the simulator's in-process rings.

@@ -12,7 +12,10 @@
 //! A write error (disk full) stops that stream with a visible flag; everything else keeps
 //! going.
 
+use crate::platform::FreeSpaceProbe;
 use crate::textlog::{TextStream, Written};
+use skyframe_core::comm::LogHealthCell;
+use skyframe_core::link::messages::LogHealth;
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
@@ -38,6 +41,10 @@ pub struct WriterConfig {
     pub fsync_every: Duration,
     /// How long the writer sleeps when every ring is empty.
     pub idle_poll: Duration,
+    /// Measures the free space where the log is written (`None`: reported unknown).
+    pub free_space: Option<FreeSpaceProbe>,
+    /// Where the writer reports the log's health (free space, losses) for telemetry.
+    pub health: Option<Arc<LogHealthCell>>,
 }
 
 impl WriterConfig {
@@ -48,6 +55,8 @@ impl WriterConfig {
             flush_every: Duration::from_millis(100),
             fsync_every: Duration::from_secs(1),
             idle_poll: Duration::from_millis(5),
+            free_space: None,
+            health: None,
         }
     }
 }
@@ -158,6 +167,75 @@ pub enum StreamMode {
     Binary,
     /// `<name>.<index>.csv`, the very lines `skyframe-log to-csv` prints.
     Text,
+}
+
+/// How often the writer measures the free space and reports the log's health.
+pub const HEALTH_EVERY: Duration = Duration::from_secs(2);
+/// Below this many seconds of logging at the rate measured so far, the writer warns (once).
+pub const LOW_SPACE_WARNING_S: f64 = 60.0;
+
+/// The writer's view of the disk: measured every [`HEALTH_EVERY`], reported through
+/// `config.health`, and a warning once the space left is less than a minute of logging.
+struct SpaceWatch {
+    started: Instant,
+    last: Option<Instant>,
+    warned: bool,
+}
+
+impl SpaceWatch {
+    fn new() -> Self {
+        Self {
+            started: Instant::now(),
+            last: None,
+            warned: false,
+        }
+    }
+
+    fn update(&mut self, config: &WriterConfig, drains: &[Drain]) {
+        if self.last.is_some_and(|t| t.elapsed() < HEALTH_EVERY) {
+            return;
+        }
+        self.last = Some(Instant::now());
+        let free = config.free_space.and_then(|probe| probe(&config.dir).ok());
+        let lost: u64 = drains
+            .iter()
+            .map(|d| d.status.records_lost.load(Ordering::Relaxed))
+            .sum();
+        let suspended = drains
+            .iter()
+            .filter(|d| d.status.suspended.load(Ordering::Relaxed))
+            .count();
+        if let Some(health) = &config.health {
+            health.set(LogHealth {
+                free_mib: free.map_or(LogHealth::UNKNOWN, |b| {
+                    u32::try_from(b / (1024 * 1024)).unwrap_or(LogHealth::UNKNOWN - 1)
+                }),
+                records_lost: u32::try_from(lost).unwrap_or(u32::MAX),
+                streams_suspended: u8::try_from(suspended).unwrap_or(u8::MAX),
+            });
+        }
+        let written: u64 = drains
+            .iter()
+            .map(|d| d.status.bytes_written.load(Ordering::Relaxed))
+            .sum();
+        let elapsed = self.started.elapsed().as_secs_f64();
+        if let Some(free) = free
+            && !self.warned
+            && elapsed >= 10.0
+        {
+            let rate = written as f64 / elapsed;
+            if rate > 0.0 && (free as f64) < rate * LOW_SPACE_WARNING_S {
+                self.warned = true;
+                log::warn!(
+                    "log {}: {} kB free, about {:.0} s of logging left at {:.0} kB/s",
+                    config.dir.display(),
+                    free / 1024,
+                    free as f64 / rate,
+                    rate / 1024.0
+                );
+            }
+        }
+    }
 }
 
 /// A suspended stream (its disk was full) tries to write again this often.
@@ -621,7 +699,9 @@ fn writer_thread(
     let mut files = Vec::new();
     let mut last_flush = Instant::now();
     let mut last_sync = Instant::now();
+    let mut space = SpaceWatch::new();
     loop {
+        space.update(&config, &drains);
         // Read the flag before draining: whatever was pushed before it was set is drained.
         let stopping = stop.load(Ordering::Acquire);
         let mut busy = false;
@@ -669,6 +749,39 @@ fn writer_thread(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_writer_reports_free_space_and_losses_for_telemetry() {
+        fn five_gib(_: &Path) -> std::io::Result<u64> {
+            Ok(5 * 1024 * 1024 * 1024)
+        }
+        let dir = std::env::temp_dir().join(format!("skyframe-health-{}", std::process::id()));
+        let health = Arc::new(LogHealthCell::new());
+        assert_eq!(health.get().free_mib, LogHealth::UNKNOWN);
+        let mut writer = LogWriter::new(WriterConfig {
+            free_space: Some(five_gib),
+            health: Some(Arc::clone(&health)),
+            ..WriterConfig::new(dir.clone())
+        });
+        let _stream = writer.stream("imu", 4096);
+        let handle = writer.start().expect("starts");
+        let start = Instant::now();
+        while health.get().free_mib == LogHealth::UNKNOWN
+            && start.elapsed() < Duration::from_secs(2)
+        {
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        handle.finish();
+        assert_eq!(
+            health.get(),
+            LogHealth {
+                free_mib: 5 * 1024,
+                records_lost: 0,
+                streams_suspended: 0
+            }
+        );
+        let _ = std::fs::remove_dir_all(dir);
+    }
 
     fn time(sec: i32, nsec: u32) -> [u8; 8] {
         let mut t = [0u8; 8];

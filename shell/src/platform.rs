@@ -155,4 +155,14 @@ pub trait Platform {
     /// How this platform opens serial ports (see [`SerialOpener`]); platforms without any
     /// give [`crate::serial::no_serial_ports`].
     fn serial_opener(&self) -> SerialOpener;
+
+    /// How to measure the free space where a directory is (`statvfs`), for the log's space
+    /// check and its health; `None` where the platform has no way (the check is skipped
+    /// and the space reported unknown).
+    fn free_space_probe(&self) -> Option<FreeSpaceProbe> {
+        None
+    }
 }
+
+/// Bytes free (for an unprivileged writer) on the file system holding a path.
+pub type FreeSpaceProbe = fn(&std::path::Path) -> std::io::Result<u64>;

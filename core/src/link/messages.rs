@@ -352,6 +352,34 @@ pub struct ExecutiveStatus {
     pub health_period_ms: u32,
     pub frames: FrameStats,
     pub link: LinkCounters,
+    /// The flight log's state: free space where it is written, records lost to failed writes.
+    pub log: LogHealth,
+}
+
+/// How the flight's log is doing, as the shell's log writer last measured it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct LogHealth {
+    /// Free space on the log's file system, in MiB ([`LogHealth::UNKNOWN`] if not measured).
+    pub free_mib: u32,
+    /// Records that never reached the disk (failed writes: a full disk), all streams.
+    pub records_lost: u32,
+    /// Streams whose writes are failing right now (suspended, retrying).
+    pub streams_suspended: u8,
+}
+
+impl LogHealth {
+    pub const UNKNOWN: u32 = u32::MAX;
+}
+
+impl Default for LogHealth {
+    fn default() -> Self {
+        Self {
+            free_mib: Self::UNKNOWN,
+            records_lost: 0,
+            streams_suspended: 0,
+        }
+    }
 }
 
 /// A parameter's value in force, with its range: sent for each parameter on
@@ -604,7 +632,10 @@ impl Telemetry {
                 ] {
                     w.u64(count)?;
                 }
-                m.link.encode(w)
+                m.link.encode(w)?;
+                w.u32(m.log.free_mib)?;
+                w.u32(m.log.records_lost)?;
+                w.u8(m.log.streams_suspended)
             }
             Telemetry::ParamValue(m) => {
                 w.u16(m.index)?;
@@ -714,6 +745,11 @@ impl Telemetry {
                     timing_records_dropped: r.u64()?,
                 },
                 link: LinkCounters::decode(r)?,
+                log: LogHealth {
+                    free_mib: r.u32()?,
+                    records_lost: r.u32()?,
+                    streams_suspended: r.u8()?,
+                },
             }),
             t::PARAM_VALUE => {
                 let index = r.u16()?;

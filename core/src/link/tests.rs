@@ -310,9 +310,10 @@ fn any_executive_status() -> impl Strategy<Value = ExecutiveStatus> {
         any::<u32>(),
         any::<[u64; 7]>(),
         any::<[u32; 16]>(),
+        any::<(u32, u32, u8)>(),
     )
         .prop_map(
-            |(times, mode, task_count, health_period_ms, f, l)| ExecutiveStatus {
+            |(times, mode, task_count, health_period_ms, f, l, log)| ExecutiveStatus {
                 elapsed_ns: times[0],
                 duration_ns: times[1],
                 mode,
@@ -344,6 +345,11 @@ fn any_executive_status() -> impl Strategy<Value = ExecutiveStatus> {
                     telemetry_sent: l[13],
                     telemetry_send_failed: l[14],
                     rate_limited: l[15],
+                },
+                log: LogHealth {
+                    free_mib: log.0,
+                    records_lost: log.1,
+                    streams_suspended: log.2,
                 },
             },
         )
@@ -1151,7 +1157,7 @@ fn payload_sizes_match_the_spec_table() {
     let c = |m| payload_len(Message::Command(m));
     assert_eq!(
         t(Telemetry::ExecutiveStatus(ExecutiveStatus::default())),
-        142
+        151
     );
     assert_eq!(
         t(Telemetry::TaskStatus(TaskStatus {

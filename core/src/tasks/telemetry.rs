@@ -20,7 +20,7 @@
 
 use super::tap::Tap;
 use super::task_log::TaskLog;
-use crate::comm::{LatestSlot, RecordSink};
+use crate::comm::{LatestSlot, LogHealthCell, RecordSink};
 use crate::executive::{Task, TaskContext, TaskFault};
 use crate::link::auth::{CommandGate, GateConfig, LinkCounters, LinkKey};
 use crate::link::frame::{Envelope, MAX_DATAGRAM_LEN, encode_datagram};
@@ -63,6 +63,8 @@ pub struct LinkShared<'a> {
     pub stop: &'a AtomicBool,
     /// What the shell's socket thread dropped before queueing (`None` in tests without one).
     pub ingress: Option<&'a IngressCounters>,
+    /// The flight log's free space and losses, as the shell's log writer measures them.
+    pub log_health: Option<&'a LogHealthCell>,
 }
 
 pub struct TelemetryConfig {
@@ -433,6 +435,11 @@ impl<'a, P: DatagramPort, S: RecordSink> TelemetryTask<'a, P, S> {
             health_period_ms,
             frames: cx.health.frames,
             link: self.counters(),
+            log: self
+                .shared
+                .log_health
+                .map(LogHealthCell::get)
+                .unwrap_or_default(),
         }
     }
 

@@ -207,6 +207,10 @@ impl FakeVehicle {
                         ..Default::default()
                     },
                     link: *self.gate.counters(),
+                    log: skyframe_core::link::messages::LogHealth {
+                        free_mib: 51_200,
+                        ..Default::default()
+                    },
                 };
                 self.send(Telemetry::ExecutiveStatus(status), now_ns, to);
             }

@@ -6,7 +6,7 @@ use crate::model::GroundModel;
 use crate::net::{Incoming, Received};
 use serde_json::{Map, Value as Json, json};
 use skyframe_core::link::frame::{FrameError, Header};
-use skyframe_core::link::messages::{FlightMode, Telemetry, Value};
+use skyframe_core::link::messages::{FlightMode, LogHealth, Telemetry, Value};
 
 pub fn value_json(value: &Value) -> Json {
     match *value {
@@ -177,6 +177,15 @@ pub fn telemetry_fields(
                     "telemetry_sent": l.telemetry_sent,
                     "telemetry_send_failed": l.telemetry_send_failed,
                     "rate_limited": l.rate_limited,
+                }),
+            );
+            let log = &e.log;
+            put(
+                "log",
+                json!({
+                    "free_mib": (log.free_mib != LogHealth::UNKNOWN).then_some(log.free_mib),
+                    "records_lost": log.records_lost,
+                    "streams_suspended": log.streams_suspended,
                 }),
             );
         }

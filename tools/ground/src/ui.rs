@@ -548,7 +548,7 @@ impl App {
         let task_rows = vehicle.tasks.len().max(1) as u16;
         let [table_area, info_area, lower_area] = Layout::vertical([
             Constraint::Length(task_rows + 3),
-            Constraint::Length(7),
+            Constraint::Length(8),
             Constraint::Min(3),
         ])
         .areas(area);
@@ -670,6 +670,7 @@ impl App {
                         )),
                         Span::styled(" s: STOP ", Style::new().fg(Color::White).bg(Color::Red)),
                     ]),
+                    log_line(&e.log),
                     Line::from(format!(
                         "frames {}  missed {}  late {}  overrun {}  max start latency {:.0} µs  max frame work {:.0} µs  timing records dropped {}",
                         f.frames,
@@ -718,6 +719,24 @@ impl App {
             Paragraph::new(lines).block(Block::bordered().title(" executive ")),
             info_area,
         );
+    }
+}
+
+/// The flight log's health: red when records are being lost.
+fn log_line(log: &skyframe_core::link::messages::LogHealth) -> Line<'static> {
+    let free = if log.free_mib == skyframe_core::link::messages::LogHealth::UNKNOWN {
+        "free space unknown".to_string()
+    } else {
+        format!("{} MiB free", log.free_mib)
+    };
+    let text = format!(
+        "log: {free}  records lost {}  streams suspended {}",
+        log.records_lost, log.streams_suspended
+    );
+    if log.records_lost > 0 || log.streams_suspended > 0 {
+        Line::styled(text, Style::new().fg(Color::Red).bold())
+    } else {
+        Line::from(text)
     }
 }
 

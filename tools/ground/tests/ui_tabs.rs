@@ -190,6 +190,10 @@ fn executive_tab_shows_four_lights_counters_and_timing_per_task() {
         "{screen}"
     );
     assert!(screen.contains("of 600 s"), "{screen}");
+    assert!(
+        screen.contains("log: free space unknown  records lost 0"),
+        "{screen}"
+    );
     assert!(screen.contains("s: STOP"), "{screen}");
     // 3 s of 10 Hz data from 8 tasks (6 formats) + statuses: about 66 datagrams a second.
     assert!(screen.contains("link: 6"), "{screen}");
