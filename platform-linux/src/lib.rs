@@ -94,6 +94,9 @@ impl Platform for Linux {
 
 /// Bytes an unprivileged process may still write where `path` is (`statvfs`: available
 /// blocks × fragment size).
+// The counts are u64 on 64-bit Linux and u32 on some 32-bit targets: the conversion is
+// needed there.
+#[allow(clippy::useless_conversion)]
 fn free_space(path: &std::path::Path) -> std::io::Result<u64> {
     let stat = nix::sys::statvfs::statvfs(path).map_err(std::io::Error::from)?;
     Ok(u64::from(stat.blocks_available()).saturating_mul(u64::from(stat.fragment_size())))
