@@ -130,6 +130,8 @@ pub struct SimWorld {
     commands: ServoCommandDecoder,
     pilot_input: PilotInput,
     scheduled_faults: Vec<Fault>,
+    /// The scheduled faults come round again every this many seconds (a soak); `None`: once.
+    fault_period_s: Option<f64>,
     faults: DeviceFaults,
     garbage_state: u32,
     stats: WorldStats,
@@ -149,6 +151,7 @@ impl SimWorld {
             commands: ServoCommandDecoder::new(u64::MAX),
             pilot_input: PilotInput::default(),
             scheduled_faults: Vec::new(),
+            fault_period_s: None,
             faults: DeviceFaults::default(),
             garbage_state: 0x9E37_79B9,
             stats: WorldStats::default(),
@@ -194,13 +197,25 @@ impl SimWorld {
         self.faults = faults;
     }
 
+    /// Makes the scenario's device faults come round again every `period_s` (a soak flies
+    /// them on a loop for hours). Periods that are not positive and finite are ignored.
+    pub fn repeat_faults_every(&mut self, period_s: f64) {
+        self.fault_period_s = (period_s.is_finite() && period_s > 0.0).then_some(period_s);
+    }
+
+    /// The time the scheduled faults are looked up at.
+    fn fault_clock_s(&self) -> f64 {
+        let t = self.plant.time_s();
+        self.fault_period_s.map_or(t, |period| t.rem_euclid(period))
+    }
+
     /// Moves the world to `t_ns`, exchanging bytes with the computer through `link`.
     pub fn advance_to(&mut self, t_ns: u64, link: &mut dyn DeviceLink) {
         let forced = self.faults;
         while self.plant.time_ns() < t_ns {
             self.faults = merge(
                 forced,
-                DeviceFaults::at(&self.scheduled_faults, self.plant.time_s()),
+                DeviceFaults::at(&self.scheduled_faults, self.fault_clock_s()),
             );
             self.read_commands(link);
             let truth = self.plant.truth();

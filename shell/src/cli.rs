@@ -58,6 +58,10 @@ pub enum Command {
     /// Score a simulated flight's logs against its ground truth again (what `sim --score`
     /// prints), e.g. after the scoring changed or for a flight flown without `--score`.
     Score(ScoreArgs),
+    /// Hours of virtual flight with a scenario's faults on a loop (default: every fault of
+    /// scenarios/faults.toml): memory and open files must stay flat and the counters agree.
+    /// Exit 1 when a check fails.
+    Soak(SoakArgs),
 }
 
 #[derive(Args, Debug, Clone)]
@@ -236,6 +240,30 @@ pub struct IdleArgs {
 }
 
 #[derive(Args, Debug)]
+pub struct SoakArgs {
+    /// Hours of virtual flight (0.01..=100). 10 h takes about 3-4 min and writes about
+    /// 1.6 GB of logs (removed once checked unless --keep-logs).
+    #[arg(long, default_value_t = 10.0, value_parser = parse_hours)]
+    pub hours: f64,
+    /// The scenario whose faults are looped (every its duration); default: the faults
+    /// scenario (scenarios/faults.toml).
+    #[arg(long, value_name = "FILE")]
+    pub scenario: Option<PathBuf>,
+    /// Seed of the simulation (default: the scenario's).
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Keep the flight's logs.
+    #[arg(long)]
+    pub keep_logs: bool,
+    #[command(flatten)]
+    pub flight: FlightArgs,
+}
+
+fn parse_hours(text: &str) -> Result<f64, String> {
+    number_within(text, 0.01, 100.0, "hours")
+}
+
+#[derive(Args, Debug)]
 pub struct RunArgs {
     /// The vehicle file: device ports and baud rates, log directory.
     #[arg(long, value_name = "FILE")]
@@ -287,6 +315,8 @@ pub struct Injection {
     pub extra_us: u64,
     pub from_frame: u64,
     pub to_frame: u64,
+    /// 0: once; else again every this many frames (`skyframe soak` loops a scenario's).
+    pub repeat_every_frames: u64,
 }
 
 /// A number within `low..=high`, or a message that says the range.
@@ -330,6 +360,7 @@ pub fn parse_injection(text: &str) -> Result<Injection, String> {
         extra_us: number(extra)?,
         from_frame: number(from)?,
         to_frame: number(to)?,
+        repeat_every_frames: 0,
     };
     if injection.task.is_empty() || injection.to_frame <= injection.from_frame {
         return Err(bad());
@@ -374,6 +405,7 @@ pub fn fault_plan(table: &FrameTable, injections: &[Injection]) -> Result<FaultP
             extra_ns: i.extra_us.saturating_mul(1000),
             from_frame: i.from_frame,
             to_frame: i.to_frame,
+            repeat_every_frames: i.repeat_every_frames,
         })
         .map_err(|_| "--inject-overrun: too many injections (8 at most)".to_string())?;
     }
@@ -502,6 +534,7 @@ fn run<P: Platform>(platform: &P, command: Command) -> Result<ExitCode, String> 
             }
             Ok(logging_lost_exit(&report))
         }
+        Command::Soak(args) => soak(platform, args),
         Command::Score(args) => {
             if !args.flight_dir.is_dir() {
                 return Err(format!(
@@ -536,6 +569,105 @@ fn run<P: Platform>(platform: &P, command: Command) -> Result<ExitCode, String> 
     }
 }
 
+/// The faults scenario, compiled in for `skyframe soak`.
+const FAULTS_SCENARIO: &str = include_str!("../../scenarios/faults.toml");
+
+/// `skyframe soak`: see [`crate::soak`].
+fn soak<P: Platform>(platform: &P, args: SoakArgs) -> Result<ExitCode, String> {
+    use crate::soak;
+    let scenario = match &args.scenario {
+        Some(path) => Scenario::load(path),
+        None => Scenario::parse(FAULTS_SCENARIO),
+    }
+    .map_err(|e| e.to_string())?;
+    if args.flight.duration.is_some() {
+        return Err("soak: the flight lasts --hours; --duration is not for soak".into());
+    }
+    let period_s = scenario.duration_s;
+    let duration_s = args.hours * 3600.0;
+    let mut world = SimWorld::from_scenario(&scenario, args.seed);
+    world.repeat_faults_every(period_s);
+    let minor = SHIPPED.minor_frame_ns;
+    let period_frames = (period_s * 1e9 / minor as f64).round() as u64;
+    let mut flight = args.flight;
+    flight.duration = Some(duration_s);
+    flight.timer_check_ms = 0;
+    flight
+        .inject_overrun
+        .extend(
+            scenario_overruns(&scenario, minor)
+                .into_iter()
+                .map(|i| Injection {
+                    repeat_every_frames: period_frames,
+                    ..i
+                }),
+        );
+    let log_dir = flight.log_dir.clone().unwrap_or_else(|| {
+        std::env::temp_dir().join(format!("skyframe-soak-{}", std::process::id()))
+    });
+    flight.log_dir = Some(log_dir);
+    // Each silence of a device, once per loop that reached it.
+    let loops_reaching = |t_s: f64| -> u64 {
+        if t_s >= duration_s {
+            0
+        } else {
+            ((duration_s - t_s) / period_s).ceil() as u64
+        }
+    };
+    let mut expected: Vec<(&str, u64)> = Vec::new();
+    for (device, name) in [
+        (skyframe_sim::scenario::Device::Imu, "imu"),
+        (skyframe_sim::scenario::Device::Gps, "gps"),
+    ] {
+        let count = scenario
+            .faults
+            .iter()
+            .filter(|f| f.kind == FaultKind::SensorSilence && f.device == Some(device))
+            .map(|f| loops_reaching(f.t_s))
+            .sum();
+        expected.push((name, count));
+    }
+    let sampler = soak::Sampler::start(Duration::from_secs(1));
+    let wall = std::time::Instant::now();
+    let log = crate::vehicle::LogConfig::default();
+    let probe = platform.free_space_probe();
+    let report = fly_with(
+        &VirtualTime,
+        Devices::Sim(Box::new(world)),
+        &flight,
+        &log,
+        probe,
+    )?;
+    let samples = sampler.map(soak::Sampler::finish).unwrap_or_default();
+    let mut checks = soak::process_checks(&samples);
+    checks.extend(soak::counter_checks(&report, duration_s, minor, &expected));
+    if !args.keep_logs {
+        soak::discard_logs(&report.flight_dir);
+    }
+    let result = soak::SoakReport {
+        virtual_hours: report.summary.elapsed_s / 3600.0,
+        wall_s: wall.elapsed().as_secs_f64(),
+        fault_period_s: period_s,
+        fault_loops: loops_reaching(0.0),
+        flight_dir: report.flight_dir.clone(),
+        logs_kept: args.keep_logs,
+        samples: samples.len(),
+        ok: checks.iter().all(|c| c.ok),
+        checks,
+    };
+    if flight.json {
+        let text = serde_json::to_string_pretty(&result).map_err(|e| e.to_string())?;
+        println!("{text}");
+    } else {
+        print!("{}", soak::render(&result));
+    }
+    Ok(if result.ok {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(1)
+    })
+}
+
 /// The shipped default scenario, compiled in so `skyframe sim` flies from any directory.
 const DEFAULT_SCENARIO: &str = include_str!("../../scenarios/takeoff-circuit.toml");
 
@@ -552,6 +684,7 @@ fn scenario_overruns(scenario: &Scenario, minor_frame_ns: u64) -> Vec<Injection>
                 extra_us: f.extra_us?,
                 from_frame: frame(f.t_s),
                 to_frame: frame(f.t_s + f.duration_s).max(frame(f.t_s) + 1),
+                repeat_every_frames: 0,
             })
         })
         .collect()
@@ -681,7 +814,8 @@ mod tests {
                 task: "imu".into(),
                 extra_us: 12000,
                 from_frame: 100,
-                to_frame: 110
+                to_frame: 110,
+                repeat_every_frames: 0,
             })
         );
         for bad in [

@@ -541,6 +541,7 @@ mod tests {
             extra_ns: 1_000_000,
             from_frame: 0,
             to_frame: 1000,
+            repeat_every_frames: 0,
         })
         .expect("room");
         let mut idle = idle_tasks(SHIPPED.tasks.len());

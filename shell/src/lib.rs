@@ -23,6 +23,7 @@ pub mod ring;
 pub mod score;
 pub mod serial;
 pub mod simflight;
+pub mod soak;
 pub mod stats;
 pub mod summary;
 pub mod textlog;

@@ -470,6 +470,7 @@ fn injected_overrun_hits_only_the_given_frames() {
         extra_ns: 12 * MS,
         from_frame: 2,
         to_frame: 4,
+        repeat_every_frames: 0,
     })
     .expect("room");
     h.exec.set_faults(plan);
