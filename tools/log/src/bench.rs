@@ -604,17 +604,20 @@ fn bench(minutes: f64, runs: u32, keep_flight: Option<&Path>) -> Result<BenchRep
         });
     }
 
-    let mut ulogs = Vec::new();
-    let mut ulog_bytes = 0;
-    for (stream, _) in &files {
-        let ulog = ulog_dir.join(format!("{stream}.ulg"));
-        let outcome = crate::to_ulog::run(&flight.join(format!("{stream}.bin")), &ulog);
-        if outcome != Outcome::Whole {
-            return Err(format!("to-ulog failed on {stream}.bin"));
-        }
-        ulog_bytes += std::fs::metadata(&ulog).map(|m| m.len()).unwrap_or(0);
-        ulogs.push(ulog);
+    // One ULog for the flight, as `to-ulog FLIGHT_DIR` writes it, but with the skyframe
+    // topics only: exactly the records to-csv converts, so both sides convert the same data
+    // (the PX4 topics would give pyulog more to do).
+    let ulog = ulog_dir.join("flight.ulg");
+    let options = crate::to_ulog::UlogOptions {
+        px4_topics: false,
+        ..Default::default()
+    };
+    let reported = crate::to_ulog::convert(&flight, &ulog, &options)?;
+    if !reported.is_empty() {
+        return Err(format!("to-ulog reported: {}", reported.join("; ")));
     }
+    let ulog_bytes = std::fs::metadata(&ulog).map(|m| m.len()).unwrap_or(0);
+    let ulogs = vec![ulog];
     let (ulog2csv, unavailable) = match ulog2csv_command() {
         None => (
             None,
