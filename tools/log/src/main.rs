@@ -1,7 +1,8 @@
 //! `skyframe-log`: reads skyframe's binary flight logs (`shared/specs/log-format.md`), the
 //! successor of the thesis's ReadUavLogs.
 //!
-//! - `info`, `to-csv`, `to-ulog`: summaries and conversions;
+//! - `info`, `to-csv`, `to-ulog` (one ULog per flight), `to-parquet` (many flights):
+//!   summaries and conversions;
 //! - `plot FILE --series imu.p,servo.aileron -o out.png|svg`: series against log time;
 //! - `plot DIR --report OUT [--json]`: the thesis's standard figures (chapter 6.1.3) of a
 //!   flight directory, PNG and SVG, with the interval statistics per stream and format;
@@ -20,6 +21,7 @@ mod info;
 mod input;
 mod plot;
 mod to_csv;
+mod to_parquet;
 mod to_ulog;
 
 use std::path::PathBuf;
@@ -99,6 +101,24 @@ enum Command {
         /// record it. Default: unknown.
         #[arg(long, value_name = "VERSION")]
         ver_sw: Option<String>,
+    },
+    /// Convert many flights to Parquet: one file per stream and format, a row group per flight
+    ///
+    /// Writes DIR/<stream>.<index>.parquet with the columns flight_id (the flight
+    /// directory's name), vehicle_id, time_ns (log TIME, ns) and the format's columns, typed
+    /// as logged (uint8, int16, float32, float64, …). One row group per flight, so a reader
+    /// can skip flights. A flight whose format has another layout than the file's goes to
+    /// <stream>.<index>-<n>.parquet (noted on stderr). Byte arrays are not converted.
+    ToParquet {
+        /// Flight directories (their *.bin streams) or binary log files.
+        #[arg(required = true, value_name = "FLIGHT_DIR")]
+        inputs: Vec<PathBuf>,
+        /// Where to write the Parquet files (created if missing).
+        #[arg(long, value_name = "DIR")]
+        out_dir: PathBuf,
+        /// The vehicle id to write in every row (the logs do not record it). Default: unknown.
+        #[arg(long, value_name = "ID")]
+        vehicle_id: Option<String>,
     },
     /// Plot series against time, or draw a flight's standard figures (`--report`)
     ///
@@ -210,6 +230,11 @@ fn main() -> ExitCode {
                 ver_sw,
             },
         ),
+        Command::ToParquet {
+            inputs,
+            out_dir,
+            vehicle_id,
+        } => to_parquet::run(&inputs, &out_dir, vehicle_id.as_deref()),
         Command::Plot {
             file,
             series,
