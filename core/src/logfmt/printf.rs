@@ -109,6 +109,13 @@ impl From<fmt::Error> for RenderError {
 /// byte above 0x7f on its own is not UTF-8, so it cannot go through [`Write`].
 pub trait ByteWrite: Write {
     fn write_byte(&mut self, byte: u8) -> fmt::Result;
+
+    /// Writes ASCII the renderer built as bytes (digits, signs, points). By default it is
+    /// checked as text and goes through [`Write::write_str`]; a sink of bytes may take it as
+    /// it is (`to-csv`'s does: the check was 7 % of its time).
+    fn write_ascii(&mut self, ascii: &[u8]) -> fmt::Result {
+        self.write_str(core::str::from_utf8(ascii).map_err(|_| fmt::Error)?)
+    }
 }
 
 /// Adapts a [`Write`] (e.g. a `String`): `%c` of a byte above 0x7f becomes the Latin-1
@@ -295,7 +302,6 @@ fn render_integer<W: ByteWrite + ?Sized>(
     if zero_pad {
         leading_zeros += width.saturating_sub(body_len);
     }
-    let digits = core::str::from_utf8(digits).map_err(|_| fmt::Error)?;
     pad_around(
         out,
         flags.has(Flags::LEFT),
@@ -305,7 +311,7 @@ fn render_integer<W: ByteWrite + ?Sized>(
             out.write_str(sign)?;
             out.write_str(prefix)?;
             repeat(out, '0', leading_zeros)?;
-            out.write_str(digits)
+            out.write_ascii(digits)
         },
     )
 }
@@ -624,11 +630,10 @@ fn render_float<W: ByteWrite + ?Sized>(out: &mut W, field: &Field, value: f64) -
             } else {
                 0
             };
-            let body = core::str::from_utf8(body).map_err(|_| fmt::Error)?;
             return pad_around(out, left, width, sign.len() + zeros + body.len(), |out| {
                 out.write_str(sign)?;
                 repeat(out, '0', zeros)?;
-                out.write_str(body)
+                out.write_ascii(body)
             });
         }
     }

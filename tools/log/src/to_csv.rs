@@ -114,6 +114,12 @@ impl ByteWrite for Line {
         self.0.push(byte);
         Ok(())
     }
+
+    fn write_ascii(&mut self, ascii: &[u8]) -> std::fmt::Result {
+        // Bytes in, bytes out: the renderer's digits need no check that they are text.
+        self.0.extend_from_slice(ascii);
+        Ok(())
+    }
 }
 
 /// One open CSV and the header it last printed.
