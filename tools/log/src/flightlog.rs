@@ -8,7 +8,9 @@
 
 use std::path::{Path, PathBuf};
 
-use skyframe_core::logfmt::{Event, FieldType, Format, LogReader, ProblemKind, Record, Value};
+use skyframe_core::logfmt::{
+    Conversion, Event, FieldType, Format, LogReader, ProblemKind, Record, Value,
+};
 use skyframe_logtable::{problem_line, read_file, stream_name, time_ns};
 
 /// One distinct layout of a format index in one stream: the format string and column names
@@ -85,19 +87,33 @@ pub fn stream_files(input: &Path) -> Result<Vec<PathBuf>, String> {
     if input.is_dir() {
         let entries = std::fs::read_dir(input)
             .map_err(|e| format!("{}: cannot list directory: {e}", input.display()))?;
-        let mut files: Vec<PathBuf> = entries
-            .flatten()
-            .map(|e| e.path())
-            .filter(|p| {
-                p.is_file()
-                    && p.extension().is_some_and(|e| e == "bin")
-                    && !stream_name(p).starts_with('.')
-            })
-            .collect();
+        let paths: Vec<PathBuf> = entries.flatten().map(|e| e.path()).collect();
+        let binary = |p: &PathBuf| {
+            p.is_file()
+                && p.extension().is_some_and(|e| e == "bin")
+                && !stream_name(p).starts_with('.')
+        };
+        let mut files: Vec<PathBuf> = paths.iter().filter(|p| binary(p)).cloned().collect();
+        // A stream flown with `--text-log` is `<stream>.<index>.csv` instead of a .bin; a CSV
+        // beside its stream's .bin is a conversion and is left alone.
+        files.extend(
+            paths
+                .iter()
+                .filter(|p| {
+                    p.is_file()
+                        && text_log_name(p).is_some_and(|(stream, _)| {
+                            !stream.starts_with('.')
+                                && !input.join(format!("{stream}.bin")).is_file()
+                        })
+                        && is_text_log(p)
+                })
+                .cloned(),
+        );
         files.sort();
         if files.is_empty() {
             return Err(format!(
-                "{}: no stream files (*.bin) to convert in this directory",
+                "{}: no stream files (*.bin, or text logs <stream>.<index>.csv) to convert in \
+                 this directory",
                 input.display()
             ));
         }
@@ -116,7 +132,12 @@ impl Flight {
         let mut flight = Flight::default();
         let mut reader = Box::new(LogReader::new());
         for path in files {
-            flight.load_stream(path, &mut reader)?;
+            match text_log_name(path) {
+                Some((stream, index)) if path.extension().is_some_and(|e| e == "csv") => {
+                    flight.load_text_log(path, &stream, index)?;
+                }
+                _ => flight.load_stream(path, &mut reader)?,
+            }
         }
         Ok(flight)
     }
@@ -238,6 +259,131 @@ impl Flight {
         Ok(())
     }
 
+    /// Reads a text log (`log-format.md`: the lines `to-csv` writes): each data line's text
+    /// is parsed back into the fields of the format in force, so it converts like the binary
+    /// record it stands for (to the printed precision). A line that does not parse is
+    /// reported (file and line) and skipped.
+    fn load_text_log(&mut self, path: &Path, stream: &str, index: u8) -> Result<(), String> {
+        let bytes = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
+        let text = String::from_utf8_lossy(&bytes);
+        self.streams.push(StreamInfo {
+            name: stream.to_string(),
+            path: path.to_path_buf(),
+            ..StreamInfo::default()
+        });
+        let mut format: Option<(String, Format)> = None;
+        let mut columns: Option<Vec<String>> = None;
+        let mut layout: Option<usize> = None;
+        let mut last_ns: Option<i64> = None;
+        let mut pending: Vec<usize> = Vec::new();
+        for (n, line) in text.lines().enumerate() {
+            let report = |why: String| Damage {
+                line: format!("{}: line {}: {why}; line skipped", path.display(), n + 1),
+                after_ns: last_ns,
+                before_ns: None,
+                lost_data: true,
+            };
+            if let Some(rest) = line.strip_prefix("% format ") {
+                layout = None;
+                columns = None;
+                format = None;
+                let Some((_, spec)) = rest.split_once(": ") else {
+                    pending.push(self.damage.len());
+                    self.damage
+                        .push(report("a format line without `: `".into()));
+                    continue;
+                };
+                match Format::parse(spec) {
+                    Ok(parsed) => format = Some((spec.to_string(), parsed)),
+                    Err(e) => {
+                        pending.push(self.damage.len());
+                        self.damage
+                            .push(report(format!("invalid format {spec:?}: {e:?}")));
+                    }
+                }
+                continue;
+            }
+            if let Some(names) = line.strip_prefix("% time,") {
+                columns = Some(names.split(',').map(|c| c.trim().to_string()).collect());
+                layout = None;
+                continue;
+            }
+            if line.starts_with('%') || line.trim().is_empty() {
+                continue;
+            }
+            let Some((spec, parsed)) = format.as_ref() else {
+                pending.push(self.damage.len());
+                self.damage
+                    .push(report("a data line before any format line".into()));
+                continue;
+            };
+            let start = self.data.len();
+            let t_ns = match parse_text_record(line, spec, parsed, &mut self.data) {
+                Ok(t_ns) => t_ns,
+                Err(why) => {
+                    self.data.truncate(start);
+                    pending.push(self.damage.len());
+                    self.damage.push(report(why));
+                    continue;
+                }
+            };
+            let l = match layout {
+                Some(l) => l,
+                None => {
+                    let names = match &columns {
+                        Some(c) if c.len() == parsed.fields().len() => c.clone(),
+                        _ => column_names(parsed, None),
+                    };
+                    let l = self.layout_for(stream, index, spec, parsed, names);
+                    layout = Some(l);
+                    l
+                }
+            };
+            self.records.push(Rec {
+                t_ns,
+                layout: l,
+                start,
+                len: self.data.len() - start,
+            });
+            last_ns = Some(t_ns);
+            for d in pending.drain(..) {
+                if let Some(damage) = self.damage.get_mut(d) {
+                    damage.before_ns = Some(t_ns);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The layout of `stream`'s format `index` with this text and these columns, added if new.
+    fn layout_for(
+        &mut self,
+        stream: &str,
+        index: u8,
+        text: &str,
+        format: &Format,
+        columns: Vec<String>,
+    ) -> usize {
+        let same = |l: &Layout| l.stream == stream && l.index == index;
+        if let Some(l) = self
+            .layouts
+            .iter()
+            .position(|l| same(l) && l.format_text == text && l.columns == columns)
+        {
+            return l;
+        }
+        let version = self.layouts.iter().filter(|l| same(l)).count();
+        self.layouts.push(Layout {
+            stream: stream.to_string(),
+            index,
+            version,
+            format: *format,
+            format_text: text.to_string(),
+            columns,
+        });
+        self.layouts.len() - 1
+    }
+
     /// The flight's first time (any record with a TIME), in ns.
     pub fn start_ns(&self) -> Option<i64> {
         let records = self.records.iter().map(|r| r.t_ns);
@@ -295,4 +441,116 @@ fn column_names(format: &Format, comment: Option<&str>) -> Vec<String> {
     } else {
         (1..=count).map(|i| format!("field{i}")).collect()
     }
+}
+
+/// `<stream>.<index>.csv` → (stream, index), for index 1..=255.
+fn text_log_name(path: &Path) -> Option<(String, u8)> {
+    let name = path.file_name()?.to_str()?;
+    let stem = name.strip_suffix(".csv")?;
+    let (stream, index) = stem.rsplit_once('.')?;
+    let index: u8 = index.parse().ok()?;
+    (index > 0 && !stream.is_empty()).then(|| (stream.to_string(), index))
+}
+
+/// Whether a file starts like a text log (its first line a `% format` line).
+fn is_text_log(path: &Path) -> bool {
+    use std::io::Read;
+    let mut start = [0u8; 9];
+    std::fs::File::open(path)
+        .and_then(|mut f| f.read_exact(&mut start))
+        .is_ok_and(|()| &start == b"% format ")
+}
+
+/// Parses a text log's data line `<sec>.<nsec>,<record text>` against its format, appending
+/// the fields' little-endian bytes to `data`; returns the time in ns. The record text is
+/// split at the format's literal text between conversions (`,` in every shipped format).
+fn parse_text_record(
+    line: &str,
+    spec: &str,
+    format: &Format,
+    data: &mut Vec<u8>,
+) -> Result<i64, String> {
+    let (time, mut rest) = line.split_once(',').ok_or("no time field")?;
+    let (sec, nsec) = time
+        .split_once('.')
+        .ok_or_else(|| format!("time {time:?} is not <sec>.<nsec>"))?;
+    let sec: i64 = sec.parse().map_err(|_| format!("time {time:?}"))?;
+    let nsec: i64 = nsec.parse().map_err(|_| format!("time {time:?}"))?;
+    let fields = format.fields();
+    let literal = |from: usize, to: usize| spec.get(from..to).map(|l| l.replace("%%", "%"));
+    let mut previous_end = 0usize;
+    for (i, field) in fields.iter().enumerate() {
+        let before = literal(previous_end, usize::from(field.span_start)).ok_or("format text")?;
+        rest = rest
+            .strip_prefix(before.as_str())
+            .ok_or_else(|| format!("expected {before:?} before field {}", i + 1))?;
+        previous_end = usize::from(field.span_end);
+        let next_start = fields
+            .get(i + 1)
+            .map_or(spec.len(), |f| usize::from(f.span_start));
+        let after = literal(previous_end, next_start).ok_or("format text")?;
+        let token = if i + 1 == fields.len() && after.is_empty() {
+            std::mem::take(&mut rest)
+        } else if after.is_empty() {
+            return Err("two conversions without text between them cannot be split".into());
+        } else {
+            let at = rest
+                .find(after.as_str())
+                .ok_or_else(|| format!("expected {after:?} after field {}", i + 1))?;
+            let (token, tail) = rest.split_at(at);
+            rest = tail;
+            token
+        };
+        let value = parse_field(token, field.ty, field.conversion)
+            .ok_or_else(|| format!("field {} {token:?} is not a {}", i + 1, field.ty.name()))?;
+        let mut bytes = [0u8; 8];
+        let n = value.encode(&mut bytes).ok_or("field size")?;
+        data.extend_from_slice(bytes.get(..n).unwrap_or(&[]));
+    }
+    let tail = literal(previous_end, spec.len()).ok_or("format text")?;
+    if rest != tail {
+        return Err(format!("unexpected text {rest:?} at the end"));
+    }
+    Ok(sec * 1_000_000_000 + nsec)
+}
+
+/// A printed field back to its value (padding spaces allowed).
+fn parse_field(token: &str, ty: FieldType, conversion: Conversion) -> Option<Value> {
+    let t = token.trim();
+    if conversion == Conversion::Char {
+        return Some(Value::U8(*token.as_bytes().first()?));
+    }
+    if matches!(ty, FieldType::F32 | FieldType::F64) {
+        // C prints NaN as `nan`/`-nan`, infinities as `inf`/`-inf` (any case with %F etc.).
+        let lower = t.to_ascii_lowercase();
+        let x = match lower.trim_start_matches(['-', '+']) {
+            "nan" => f64::NAN,
+            _ => lower.parse::<f64>().ok()?,
+        };
+        return Some(match ty {
+            FieldType::F32 => Value::F32(x as f32),
+            _ => Value::F64(x),
+        });
+    }
+    let (digits, radix) = match conversion {
+        Conversion::HexLower | Conversion::HexUpper => {
+            (t.trim_start_matches("0x").trim_start_matches("0X"), 16)
+        }
+        Conversion::Octal => (t, 8),
+        _ => (t.trim_start_matches('+'), 10),
+    };
+    let wide = i128::from_str_radix(digits, radix).ok()?;
+    // %u/%x/%o of a signed field (or %d of an unsigned one) prints the other reading of the
+    // same bits: take the value modulo the width, as C reinterprets it.
+    Some(match ty {
+        FieldType::I8 => Value::I8(wide as i8),
+        FieldType::U8 => Value::U8(wide as u8),
+        FieldType::I16 => Value::I16(wide as i16),
+        FieldType::U16 => Value::U16(wide as u16),
+        FieldType::I32 => Value::I32(wide as i32),
+        FieldType::U32 => Value::U32(wide as u32),
+        FieldType::I64 => Value::I64(wide as i64),
+        FieldType::U64 => Value::U64(wide as u64),
+        FieldType::F32 | FieldType::F64 => return None,
+    })
 }

@@ -88,7 +88,8 @@ enum Command {
     /// report are logged messages; lost records are dropouts. docs/ulog.md has the mapping.
     /// Byte arrays are not converted.
     ToUlog {
-        /// A flight directory (its *.bin streams) or one binary log file.
+        /// A flight directory (its *.bin streams, and text logs <stream>.<index>.csv of
+        /// streams flown with --text-log), or one binary log or text log file.
         #[arg(value_name = "FLIGHT_DIR|FILE")]
         input: PathBuf,
         /// The ULog file to write. Default: FLIGHT_DIR/flight.ulg, or FILE with `.ulg`.

@@ -895,7 +895,7 @@ fn converters_given_nothing_say_so_in_one_line_and_fail() {
         (
             vec!["to-ulog".as_ref(), empty.as_os_str()],
             format!(
-                "skyframe-log: {}: no stream files (*.bin) to convert",
+                "skyframe-log: {}: no stream files (*.bin, or text logs",
                 empty.display()
             ),
         ),
@@ -921,7 +921,7 @@ fn converters_given_nothing_say_so_in_one_line_and_fail() {
                 out_dir.as_os_str(),
             ],
             format!(
-                "skyframe-log: {}: no stream files (*.bin) to convert",
+                "skyframe-log: {}: no stream files (*.bin, or text logs",
                 empty.display()
             ),
         ),
@@ -1018,4 +1018,79 @@ fn no_input_makes_the_converters_panic() {
             );
         }
     }
+}
+
+#[test]
+fn text_log_streams_convert_like_their_binary_logs() {
+    if !python_has("pyulog", "text_log_streams_convert_like_their_binary_logs") {
+        return;
+    }
+    let c = convert_full_flight();
+    // The same flight with imu and gps flown as text logs (`--text-log`): a text log is
+    // exactly what to-csv writes for the binary (log-format.md).
+    let text_flight = c._dir.path().join("text-flight");
+    std::fs::create_dir(&text_flight).expect("dir");
+    for entry in std::fs::read_dir(&c.flight).expect("list").flatten() {
+        let name = entry.file_name().to_string_lossy().into_owned();
+        if name.ends_with(".bin") && name != "imu.bin" && name != "gps.bin" {
+            std::fs::copy(entry.path(), text_flight.join(&name)).expect("copy");
+        }
+    }
+    for name in ["imu.1.csv", "imu.2.csv", "gps.1.csv"] {
+        std::fs::copy(c.csv.join(name), text_flight.join(name)).expect("copy");
+    }
+    // A line that does not parse is reported with its line number and skipped.
+    let imu_text = text_flight.join("imu.1.csv");
+    let mut text = std::fs::read_to_string(&imu_text).expect("read");
+    let lines = text.lines().count();
+    text.push_str("1700000020.000000000,x,0.1,0.1,0.1,0.0,0.0,-9.8,0\n");
+    std::fs::write(&imu_text, text).expect("write");
+    let out = run(bin().arg("to-ulog").arg(&text_flight));
+    assert_eq!(out.status.code(), Some(3), "{}", stderr(&out));
+    assert_eq!(
+        stderr(&out),
+        format!(
+            "{}: line {}: field 1 \"x\" is not a u8; line skipped\n",
+            imu_text.display(),
+            lines + 1
+        )
+    );
+    let t = Ulog::read(&text_flight.join("flight.ulg"));
+    assert_eq!(t.origin_ns(), c.ulog.origin_ns());
+    for (topic, csv_name) in [
+        ("skyframe_imu", "imu.1"),
+        ("skyframe_imu_slow", "imu.2"),
+        ("skyframe_gps", "gps.1"),
+    ] {
+        let csv = csv_of(&c, csv_name);
+        let fields = ["timestamp".to_string()]
+            .into_iter()
+            .chain(csv.columns.clone());
+        for field in fields {
+            let tolerance = if field == "timestamp" {
+                0.0
+            } else {
+                csv.tolerance_of(&field)
+            };
+            assert_close(
+                &format!("text {topic}.{field}"),
+                &t.series(topic, 0, &field),
+                &c.ulog.series(topic, 0, &field),
+                tolerance,
+            );
+        }
+    }
+    let imu = csv_of(&c, "imu.1");
+    assert_close(
+        "text sensor_combined.gyro_rad[0]",
+        &t.series("sensor_combined", 0, "gyro_rad[0]"),
+        &c.ulog.series("sensor_combined", 0, "gyro_rad[0]"),
+        imu.tolerance_of("p_rad_s"),
+    );
+    assert_close(
+        "text vehicle_gps_position.lat",
+        &t.series("vehicle_gps_position", 0, "lat"),
+        &c.ulog.series("vehicle_gps_position", 0, "lat"),
+        1.0,
+    );
 }
