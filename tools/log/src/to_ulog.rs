@@ -688,10 +688,19 @@ fn put(out: &mut Vec<u8>, ty: &str, value: f64) {
 // The ULog file.
 
 /// Syslog levels as ULog's logged messages carry them (ASCII digits, as PX4 writes them).
-#[derive(Clone, Copy)]
+#[derive(Clone, Copy, PartialEq)]
 enum Level {
-    Warning = b'4' as isize,
-    Info = b'6' as isize,
+    Warning,
+    Info,
+}
+
+impl Level {
+    fn byte(self) -> u8 {
+        match self {
+            Level::Warning => b'4',
+            Level::Info => b'6',
+        }
+    }
 }
 
 struct Topic {
@@ -772,7 +781,11 @@ impl Ulog {
         self.push(
             timestamp_us,
             b'L',
-            &[&[level as u8], &timestamp_us.to_le_bytes(), text.as_bytes()],
+            &[
+                &[level.byte()],
+                &timestamp_us.to_le_bytes(),
+                text.as_bytes(),
+            ],
         );
     }
 
@@ -1088,8 +1101,9 @@ fn events(flight: &Flight, ulog: &mut Ulog, us: &impl Fn(i64) -> u64) {
         }
     }
     let mut values = Vec::new();
-    // (stream, index, columns watched, level when they change, describe)
-    type Describe = fn(&Row) -> String;
+    // (stream, index, the columns watched, what a change says and how loud). A state at the
+    // start is logged too, except a device that is fine (no news).
+    type Describe = fn(&Row) -> (Level, String);
     let watched: &[(&str, u8, &[&str], Describe)] = &[
         ("control", 1, &["mode", "reason"], |r| {
             let mode = match r.get("mode") as u8 {
@@ -1106,7 +1120,10 @@ fn events(flight: &Flight, ulog: &mut Ulog, us: &impl Fn(i64) -> u64) {
                 4 => "auto without a mission: holding course and altitude",
                 _ => "unknown reason",
             };
-            format!("mode {mode} ({reason})")
+            // Forced out of the requested mode: worth a warning.
+            let forced = matches!(r.get("reason") as u8, 2 | 3);
+            let level = if forced { Level::Warning } else { Level::Info };
+            (level, format!("mode {mode} ({reason})"))
         }),
         ("estimator", 2, &["phase", "healthy", "reason"], |r| {
             let phase = match r.get("phase") as u8 {
@@ -1126,28 +1143,35 @@ fn events(flight: &Flight, ulog: &mut Ulog, us: &impl Fn(i64) -> u64) {
                 7 => "reconverging after a reset",
                 _ => "unknown reason",
             };
-            let health = if r.get("healthy") == 1.0 {
-                "healthy"
+            if r.get("healthy") == 1.0 {
+                (
+                    Level::Info,
+                    format!("estimator {phase}, healthy ({reason})"),
+                )
             } else {
-                "unhealthy"
-            };
-            format!("estimator {phase}, {health} ({reason})")
+                (
+                    Level::Warning,
+                    format!("estimator {phase}, unhealthy ({reason})"),
+                )
+            }
         }),
         ("imu", 3, &["stale"], |r| stale("imu", r)),
         ("gps", 2, &["stale"], |r| stale("gps", r)),
         ("servo", 3, &["stale"], |r| stale("servo", r)),
         ("executive", 2, &["over_margin"], |r| {
-            format!(
+            let late = r.get("over_margin") > 0.0;
+            let text = format!(
                 "timer check: wake-up latency p99 {} us, max {} us, margin {} us{}",
                 r.get("wakeup_latency_p99_us"),
                 r.get("wakeup_latency_max_us"),
                 r.get("margin_us"),
-                if r.get("over_margin") > 0.0 {
-                    ": LATE wake-ups over the margin"
+                if late {
+                    ": wake-ups later than the margin"
                 } else {
                     ""
                 }
-            )
+            );
+            (if late { Level::Warning } else { Level::Info }, text)
         }),
     ];
     for &(stream, index, columns, describe) in watched {
@@ -1171,20 +1195,10 @@ fn events(flight: &Flight, ulog: &mut Ulog, us: &impl Fn(i64) -> u64) {
             if last.as_ref() == Some(&now) {
                 continue;
             }
-            let text = describe(&row);
-            let bad = text.contains("unhealthy")
-                || text.contains("stale")
-                || text.contains("LATE")
-                || text.contains("no report")
-                || text.contains("estimator unhealthy");
-            let level = if bad { Level::Warning } else { Level::Info };
-            // A device that is fine at start is no news.
-            let news = last.is_some()
-                || bad
-                || stream == "control"
-                || stream == "estimator"
-                || stream == "executive";
-            if news {
+            let (level, text) = describe(&row);
+            let device_fine_at_start =
+                last.is_none() && columns == ["stale"] && level == Level::Info;
+            if !device_fine_at_start {
                 ulog.log(us(rec.t_ns), level, &text);
             }
             last = Some(now);
@@ -1192,10 +1206,10 @@ fn events(flight: &Flight, ulog: &mut Ulog, us: &impl Fn(i64) -> u64) {
     }
 }
 
-fn stale(device: &str, r: &Row) -> String {
+fn stale(device: &str, r: &Row) -> (Level, String) {
     if r.get("stale") > 0.0 {
-        format!("{device}: device stale")
+        (Level::Warning, format!("{device}: device stale"))
     } else {
-        format!("{device}: device reporting again")
+        (Level::Info, format!("{device}: device reporting again"))
     }
 }
