@@ -474,8 +474,13 @@ fn parse_text_record(
     let (sec, nsec) = time
         .split_once('.')
         .ok_or_else(|| format!("time {time:?} is not <sec>.<nsec>"))?;
-    let sec: i64 = sec.parse().map_err(|_| format!("time {time:?}"))?;
-    let nsec: i64 = nsec.parse().map_err(|_| format!("time {time:?}"))?;
+    // TIME's own ranges (log-format.md): i32 seconds, nanoseconds below 10⁹.
+    let sec: i32 = sec.parse().map_err(|_| format!("time {time:?}"))?;
+    let nsec: u32 = nsec
+        .parse()
+        .ok()
+        .filter(|&n| n < 1_000_000_000)
+        .ok_or_else(|| format!("time {time:?}"))?;
     let fields = format.fields();
     let literal = |from: usize, to: usize| spec.get(from..to).map(|l| l.replace("%%", "%"));
     let mut previous_end = 0usize;
@@ -511,7 +516,7 @@ fn parse_text_record(
     if rest != tail {
         return Err(format!("unexpected text {rest:?} at the end"));
     }
-    Ok(sec * 1_000_000_000 + nsec)
+    Ok(i64::from(sec) * 1_000_000_000 + i64::from(nsec))
 }
 
 /// A printed field back to its value (padding spaces allowed).
@@ -541,7 +546,12 @@ fn parse_field(token: &str, ty: FieldType, conversion: Conversion) -> Option<Val
     };
     let wide = i128::from_str_radix(digits, radix).ok()?;
     // %u/%x/%o of a signed field (or %d of an unsigned one) prints the other reading of the
-    // same bits: take the value modulo the width, as C reinterprets it.
+    // same bits, so either reading is accepted (and cast back, as C reinterprets it); a
+    // number neither reading of the field's width can print is not this field's.
+    let bits = 8 * ty.size() as u32;
+    if wide < -(1i128 << (bits - 1)) || wide > (1i128 << bits) - 1 {
+        return None;
+    }
     Some(match ty {
         FieldType::I8 => Value::I8(wide as i8),
         FieldType::U8 => Value::U8(wide as u8),

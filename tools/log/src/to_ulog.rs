@@ -90,6 +90,14 @@ pub fn convert(input: &Path, output: &Path, options: &UlogOptions) -> Result<Vec
             }
         ));
     }
+    // A ULog names its message layouts with a u16 (and so does ours, PX4 topics included).
+    if flight.layouts.len() > 60_000 {
+        return Err(format!(
+            "{}: {} distinct format layouts: more than a ULog can name",
+            input.display(),
+            flight.layouts.len()
+        ));
+    }
     for stream in &flight.streams {
         if stream.byte_arrays > 0 {
             reported.push(format!(
@@ -899,7 +907,7 @@ fn build(flight: &Flight, flight_id: &str, options: &UlogOptions) -> Ulog {
         let topic = ulog.topic(&name, fields);
         let multi = multi_ids.entry(name.clone()).or_insert(0);
         let multi_id = *multi;
-        *multi += 1;
+        *multi = multi.saturating_add(1);
         if multi_id > 0 || SKYFRAME_TOPICS.iter().filter(|s| s.2 == name).count() > 1 {
             ulog.info_text(&format!("{name}_{multi_id}"), &layout.stream);
         }

@@ -966,8 +966,8 @@ fn converters_given_nothing_say_so_in_one_line_and_fail() {
 
 #[test]
 fn no_input_makes_the_converters_panic() {
-    // Random bytes, and a real stream cut at every 7th length: never a panic (exit 101),
-    // always a verdict (0, 2 or 3).
+    // Random bytes, a real stream cut at every 7th length, text logs that do not fit their
+    // formats: never a panic (exit 101), always a verdict (0, 2 or 3).
     let dir = tempfile::tempdir().expect("temp dir");
     let flight_dir = dir.path().join("flight");
     std::fs::create_dir(&flight_dir).expect("dir");
@@ -991,10 +991,29 @@ fn no_input_makes_the_converters_panic() {
             .step_by(7)
             .map(|n| servo[..n].to_vec()),
     );
-    for (i, bytes) in inputs.iter().enumerate() {
+    // Text logs (`--text-log` streams) with lines that do not fit their format.
+    let text_logs: Vec<&[u8]> = vec![
+        b"% format 1: %hhu,%.4f\n1.000000000,7,0.5\n99999999999.0,1,1\n-5.5,1,1\n1.2000000000,1,1\n",
+        b"% format 1: %hhu,%.4f\n1.0,300,nan\n1.0,-1,-nan\n1.0,1\n1.0,1,2,3\n1.0\n,\n\n",
+        b"% format 1: %d%d\n1.0,12\n% format 1: %s\n1.0,x\n% format 1: 100%% %x|%c\n1.0,100% ff|\xff\n",
+        b"% format 1: %lld,%llu,%hd\n1.0,-9223372036854775809,18446744073709551616,70000\n",
+        b"% format 1\n1.0,1\n% time,a,b,c\n% format 2: %f\n1.0,1e400\n",
+    ];
+    let cases = inputs.len();
+    for (i, bytes) in inputs
+        .iter()
+        .map(Vec::as_slice)
+        .chain(text_logs)
+        .enumerate()
+    {
         let case = dir.path().join(format!("case{i}"));
         std::fs::create_dir(&case).expect("dir");
-        std::fs::write(case.join("servo.bin"), bytes).expect("write");
+        let name = if i < cases {
+            "servo.bin"
+        } else {
+            "servo.1.csv"
+        };
+        std::fs::write(case.join(name), bytes).expect("write");
         for args in [
             vec!["to-ulog".to_string(), case.display().to_string()],
             vec![
