@@ -160,13 +160,14 @@ const SKYFRAME_TOPICS: &[(&str, u8, &str)] = &[
     ("horizon", 1, "skyframe_horizon"),
 ];
 
-/// A ULog identifier from any text: ASCII alphanumerics and `_`, not starting with a digit.
+/// A ULog identifier from any text: ASCII alphanumerics and `_`, not starting with a digit
+/// (column names keep their case; topic names are lower case, as PX4's).
 fn identifier(text: &str) -> String {
     let name: String = text
         .chars()
         .map(|c| {
             if c.is_ascii_alphanumeric() || c == '_' {
-                c.to_ascii_lowercase()
+                c
             } else {
                 '_'
             }
@@ -184,9 +185,12 @@ fn skyframe_topic_name(layout: &Layout) -> String {
         .iter()
         .find(|(s, i, _)| *s == layout.stream && *i == layout.index)
         .map(|(_, _, n)| (*n).to_string())
-        .unwrap_or_else(|| match layout.index {
-            1 => format!("skyframe_{}", identifier(&layout.stream)),
-            i => format!("skyframe_{}_{i}", identifier(&layout.stream)),
+        .unwrap_or_else(|| {
+            let stream = identifier(&layout.stream).to_ascii_lowercase();
+            match layout.index {
+                1 => format!("skyframe_{stream}"),
+                i => format!("skyframe_{stream}_{i}"),
+            }
         });
     match layout.version {
         0 => base,
@@ -901,7 +905,7 @@ fn build(flight: &Flight, flight_id: &str, options: &UlogOptions) -> Ulog {
         // per stream, which needs one format; a differing layout gets its own name.
         if let Some(t) = ulog.topics.iter().find(|t| t.name == name) {
             if t.fields != fields {
-                name = format!("{name}_{}", identifier(&layout.stream));
+                name = format!("{name}_{}", identifier(&layout.stream).to_ascii_lowercase());
             }
         }
         let topic = ulog.topic(&name, fields);
