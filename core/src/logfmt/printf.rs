@@ -109,6 +109,13 @@ impl From<fmt::Error> for RenderError {
 /// byte above 0x7f on its own is not UTF-8, so it cannot go through [`Write`].
 pub trait ByteWrite: Write {
     fn write_byte(&mut self, byte: u8) -> fmt::Result;
+
+    /// Writes ASCII the renderer built as bytes (digits, signs, points). By default it is
+    /// checked as text and goes through [`Write::write_str`]; a sink of bytes may take it as
+    /// it is (`to-csv`'s does: the check was 7 % of its time).
+    fn write_ascii(&mut self, ascii: &[u8]) -> fmt::Result {
+        self.write_str(core::str::from_utf8(ascii).map_err(|_| fmt::Error)?)
+    }
 }
 
 /// Adapts a [`Write`] (e.g. a `String`): `%c` of a byte above 0x7f becomes the Latin-1
@@ -199,6 +206,11 @@ pub fn render_byte_array_bytes<W: ByteWrite + ?Sized>(
 
 /// Literal text between conversions: `%%` prints `%` (the parser allows no other `%`).
 fn write_literal<W: ByteWrite + ?Sized>(out: &mut W, literal: &str) -> fmt::Result {
+    // Nearly every literal is a comma: skip the substring search (its set-up alone was 5 %
+    // of `to-csv`) when there is no `%` at all.
+    if !literal.as_bytes().contains(&b'%') {
+        return out.write_str(literal);
+    }
     let mut rest = literal;
     while let Some(percent) = rest.find("%%") {
         out.write_str(rest.get(..=percent).unwrap_or(""))?;
@@ -290,7 +302,6 @@ fn render_integer<W: ByteWrite + ?Sized>(
     if zero_pad {
         leading_zeros += width.saturating_sub(body_len);
     }
-    let digits = core::str::from_utf8(digits).map_err(|_| fmt::Error)?;
     pad_around(
         out,
         flags.has(Flags::LEFT),
@@ -300,7 +311,7 @@ fn render_integer<W: ByteWrite + ?Sized>(
             out.write_str(sign)?;
             out.write_str(prefix)?;
             repeat(out, '0', leading_zeros)?;
-            out.write_str(digits)
+            out.write_ascii(digits)
         },
     )
 }
@@ -325,6 +336,16 @@ fn to_digits(mut value: u128, radix: u128, upper: bool, buf: &mut [u8; 48]) -> &
         b"0123456789abcdef"
     };
     let mut start = buf.len();
+    // Every logged integer fits 64 bits: u64 division by a constant radix is a multiply,
+    // u128 division a library call; the digits are the same.
+    if let Ok(small) = u64::try_from(value) {
+        let start = match radix {
+            10 => digits_u64::<10>(small, symbols, buf),
+            16 => digits_u64::<16>(small, symbols, buf),
+            _ => digits_u64::<8>(small, symbols, buf),
+        };
+        return buf.get(start..).unwrap_or(&[]);
+    }
     loop {
         let digit = usize::try_from(value % radix).unwrap_or(0);
         start -= 1;
@@ -337,6 +358,22 @@ fn to_digits(mut value: u128, radix: u128, upper: bool, buf: &mut [u8; 48]) -> &
         }
     }
     buf.get(start..).unwrap_or(&[])
+}
+
+/// [`to_digits`] for a u64 (`RADIX` 8, 10 or 16); returns where the digits start in `buf`.
+fn digits_u64<const RADIX: u64>(mut value: u64, symbols: &[u8; 16], buf: &mut [u8; 48]) -> usize {
+    let mut start = buf.len();
+    loop {
+        let digit = usize::try_from(value % RADIX).unwrap_or(0);
+        start -= 1;
+        if let (Some(slot), Some(&symbol)) = (buf.get_mut(start), symbols.get(digit)) {
+            *slot = symbol;
+        }
+        value /= RADIX;
+        if value == 0 || start == 0 {
+            return start;
+        }
+    }
 }
 
 /// Writes `body` (of `body_len` characters) padded with spaces to `width`.
@@ -445,6 +482,107 @@ impl<W: Write + ?Sized> Write for Prefix<'_, W> {
     }
 }
 
+/// Room for the longest text [`fixed_digits`] makes: 37 integer digits (below 2¹²⁰), the
+/// point and 17 decimals.
+const FIXED_BUF: usize = 64;
+
+/// 10ⁿ for the precisions the fast `%f` path takes (10¹⁷ < 2⁵⁷).
+const POW10: [u64; 18] = [
+    1,
+    10,
+    100,
+    1_000,
+    10_000,
+    100_000,
+    1_000_000,
+    10_000_000,
+    100_000_000,
+    1_000_000_000,
+    10_000_000_000,
+    100_000_000_000,
+    1_000_000_000_000,
+    10_000_000_000_000,
+    100_000_000_000_000,
+    1_000_000_000_000_000,
+    10_000_000_000_000_000,
+    100_000_000_000_000_000,
+];
+
+/// The text `%.<precision>f` prints for a finite, non-negative `magnitude` (no sign, no
+/// padding; `alt`: `#` keeps the point with no decimals), in `buf`; `None` outside the range
+/// this path covers (precision above 17, or magnitude at or above 2⁶³), which the general
+/// path then prints.
+///
+/// Why it is exact: an f64 is `m · 2^e` with an integer `m < 2⁵³`, so `magnitude · 10^p` is
+/// the integer `m · 10^p` (< 2¹¹⁰, fits u128) shifted by `e`. Shifting right by `k = -e`
+/// gives the quotient and the exact remainder; glibc rounds that remainder to nearest, ties
+/// to even (the default rounding mode), which is what the comparison with `half` does. No
+/// step rounds, so the digits are glibc's for every input (`logfmt/tests.rs` checks against
+/// the C library's `snprintf`).
+fn fixed_digits(
+    magnitude: f64,
+    precision: u16,
+    alt: bool,
+    buf: &mut [u8; FIXED_BUF],
+) -> Option<&[u8]> {
+    let p = usize::from(precision);
+    let scale = u128::from(*POW10.get(p)?);
+    let bits = magnitude.to_bits();
+    let biased = i32::try_from((bits >> 52) & 0x7ff).ok()?;
+    let fraction = bits & ((1u64 << 52) - 1);
+    // magnitude = mantissa · 2^exponent, exactly (subnormals have no implicit bit).
+    let (mantissa, exponent) = if biased == 0 {
+        (fraction, -1074)
+    } else {
+        (fraction | (1u64 << 52), biased - 1075)
+    };
+    let scaled = u128::from(mantissa) * scale;
+    let units = if exponent >= 0 {
+        // Up to 2⁶³: `scaled << exponent` stays below 2¹²⁰.
+        if exponent > 10 {
+            return None;
+        }
+        scaled << exponent
+    } else {
+        let k = exponent.unsigned_abs();
+        if k >= 112 {
+            // scaled < 2¹¹⁰ < half of 2^k: below half a unit of the last decimal, rounds to
+            // 0 (this also covers zero and the subnormals).
+            0
+        } else {
+            let quotient = scaled >> k;
+            let remainder = scaled & ((1u128 << k) - 1);
+            let half = 1u128 << (k - 1);
+            if remainder > half || (remainder == half && quotient & 1 == 1) {
+                quotient + 1
+            } else {
+                quotient
+            }
+        }
+    };
+    // In u64 whenever it fits (every logged value): u128 division is a library call.
+    let scale64 = *POW10.get(p)?;
+    let (integer, mut decimals) = match u64::try_from(units) {
+        Ok(u) => (u128::from(u / scale64), u % scale64),
+        Err(_) => (units / scale, u64::try_from(units % scale).ok()?),
+    };
+    let mut digits = [0u8; 48];
+    let integer_digits = to_digits(integer, 10, false, &mut digits);
+    let mut len = integer_digits.len();
+    buf.get_mut(..len)?.copy_from_slice(integer_digits);
+    if p > 0 || alt {
+        *buf.get_mut(len)? = b'.';
+        len += 1;
+    }
+    // Exactly p decimals, leading zeros kept.
+    for slot in buf.get_mut(len..len + p)?.iter_mut().rev() {
+        *slot = b'0' + u8::try_from(decimals % 10).ok()?;
+        decimals /= 10;
+    }
+    len += p;
+    buf.get(..len)
+}
+
 #[derive(Clone, Copy, PartialEq)]
 enum Style {
     Fixed,
@@ -479,6 +617,26 @@ fn render_float<W: ByteWrite + ?Sized>(out: &mut W, field: &Field, value: f64) -
     }
     let magnitude = value.abs();
     let alt = flags.has(Flags::ALT);
+    // `%f` (every float the shipped formats log) takes an integer-arithmetic path: core::fmt's
+    // exact mode (Grisu, falling back to Dragon4 on bignums) was most of `to-csv`'s time.
+    if matches!(
+        field.conversion,
+        Conversion::FixedLower | Conversion::FixedUpper
+    ) {
+        let mut buf = [0u8; FIXED_BUF];
+        if let Some(body) = fixed_digits(magnitude, field.precision.unwrap_or(6), alt, &mut buf) {
+            let zeros = if flags.has(Flags::ZERO) && !left {
+                width.saturating_sub(sign.len() + body.len())
+            } else {
+                0
+            };
+            return pad_around(out, left, width, sign.len() + zeros + body.len(), |out| {
+                out.write_str(sign)?;
+                repeat(out, '0', zeros)?;
+                out.write_ascii(body)
+            });
+        }
+    }
     let (style, precision, strip_zeros) = match field.conversion {
         Conversion::FixedLower | Conversion::FixedUpper => (
             Style::Fixed,

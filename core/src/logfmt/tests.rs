@@ -625,6 +625,37 @@ mod round_trip {
             prop_assert_eq!(lines, std::vec![line], "format {:?}", format_text);
         }
 
+        /// `%f`'s integer-arithmetic path (`printf::fixed_digits`) where it is hardest:
+        /// dyadic values k/2ⁿ land exactly on rounding ties at many precisions, and the
+        /// range edges (2⁶³, precision 17/18, tiny and subnormal values) switch paths.
+        #[test]
+        fn fixed_point_ties_and_edges_equal_c_printf(
+            k in -100_000_000i64..100_000_000,
+            n in 0i32..70,
+            scale in prop::sample::select(std::vec![1.0f64, 1e-300, 2f64.powi(62), 2f64.powi(63), 5e-324]),
+            precision in 0u16..20,
+            flags in prop::sample::select(std::vec!["", "#", "+", "08", "-12", " "]),
+            single in any::<bool>(),
+        ) {
+            let value = k as f64 / 2f64.powi(n) * scale;
+            let (spec, value) = if single {
+                (std::format!("%{flags}.{precision}f"), Value::F32(value as f32))
+            } else {
+                (std::format!("%{flags}.{precision}lf"), Value::F64(value))
+            };
+            let format = Format::parse(&spec).expect("valid");
+            let mut data = [0u8; 8];
+            let len = value.encode(&mut data).expect("fits");
+            let mut out = Bytes(Vec::new());
+            render_data_block_bytes(&mut out, &spec, &format, &data[..len]).expect("renders");
+            let expected = c_printf(&spec, value);
+            prop_assert_eq!(
+                String::from_utf8_lossy(&out.0),
+                String::from_utf8_lossy(&expected),
+                "{} of {:?}", spec, value
+            );
+        }
+
         #[test]
         fn byte_arrays_equal_c_printf(
             spec in prop::sample::select(std::vec!["%hhx", "%02hhX", "%c", "%hhd", "%#hho", "<%-4hhu>"]),

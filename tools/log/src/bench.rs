@@ -1,11 +1,13 @@
 //! `bench`: how fast `to-csv` converts, and how much smaller the binary log is than its text,
 //! on a synthetic flight of the shipped streams (`docs/log-streams.md`) at their real rates;
-//! in the same run, PX4's `ulog2csv` (pyulog) on the ULog export of the same flight.
+//! in the same run, PX4's `ulog2csv` (pyulog) on the ULog export of the same flight (one
+//! ULog for the flight, as `to-ulog FLIGHT_DIR` writes it, with the skyframe topics only: the
+//! same records to-csv converts, none of the derived PX4 topics).
 //!
 //! Throughput is MB (10⁶ bytes) of binary log in per second of wall time, the fastest of
 //! `--runs` conversions of the whole flight directory, in this process (no progress bar).
 //! The ratio is `ulog2csv` seconds over `to-csv` seconds for the same flight: how many times
-//! longer pyulog takes (its Python start-up included, once per ULog file, as a user meets it).
+//! longer pyulog takes (its Python start-up included, once, as a user meets it).
 //! A second ratio leaves the start-up out: pyulog's `convert_ulog2csv` timed inside one warm
 //! Python process.
 
@@ -523,7 +525,7 @@ fn table(r: &BenchReport) -> String {
     let _ = match (&r.ulog2csv, r.ulog2csv_over_to_csv_time) {
         (Some(u), Some(ratio)) => writeln!(
             out,
-            "ulog2csv ({}): best {:.3} s for {} ULog files ({} bytes, {:.1} MB/s); \
+            "ulog2csv ({}): best {:.3} s for {} ULog file(s) ({} bytes, {:.1} MB/s); \
              ulog2csv time / to-csv time = {ratio:.1}{}",
             u.command,
             u.timing.best_s,
@@ -604,17 +606,20 @@ fn bench(minutes: f64, runs: u32, keep_flight: Option<&Path>) -> Result<BenchRep
         });
     }
 
-    let mut ulogs = Vec::new();
-    let mut ulog_bytes = 0;
-    for (stream, _) in &files {
-        let ulog = ulog_dir.join(format!("{stream}.ulg"));
-        let outcome = crate::to_ulog::run(&flight.join(format!("{stream}.bin")), &ulog);
-        if outcome != Outcome::Whole {
-            return Err(format!("to-ulog failed on {stream}.bin"));
-        }
-        ulog_bytes += std::fs::metadata(&ulog).map(|m| m.len()).unwrap_or(0);
-        ulogs.push(ulog);
+    // One ULog for the flight, as `to-ulog FLIGHT_DIR` writes it, but with the skyframe
+    // topics only: exactly the records to-csv converts, so both sides convert the same data
+    // (the PX4 topics would give pyulog more to do).
+    let ulog = ulog_dir.join("flight.ulg");
+    let options = crate::to_ulog::UlogOptions {
+        px4_topics: false,
+        ..Default::default()
+    };
+    let reported = crate::to_ulog::convert(&flight, &ulog, &options)?;
+    if !reported.is_empty() {
+        return Err(format!("to-ulog reported: {}", reported.join("; ")));
     }
+    let ulog_bytes = std::fs::metadata(&ulog).map(|m| m.len()).unwrap_or(0);
+    let ulogs = vec![ulog];
     let (ulog2csv, unavailable) = match ulog2csv_command() {
         None => (
             None,

@@ -8,7 +8,8 @@ use skyframe_core::logfmt::{Event, LogReader};
 
 /// The files named on the command line, directories expanded to their files (sorted, not
 /// hidden, not recursive) — the seed's "convert every log here" batch script — less what a
-/// flight directory holds that is not a binary log: CSV (text logs, conversions), JSON (the
+/// flight directory holds that is not a binary log: CSV (text logs, conversions), ULog and
+/// Parquet (conversions), JSON (the
 /// simulator's `score.json`), the link key, TOML (vehicle and scenario files). Such a file is still read when named itself.
 pub fn expand(inputs: &[PathBuf]) -> Result<Vec<PathBuf>, String> {
     let mut files = Vec::new();
@@ -24,7 +25,7 @@ pub fn expand(inputs: &[PathBuf]) -> Result<Vec<PathBuf>, String> {
                 let name = path.file_name().map(|n| n.to_string_lossy().into_owned());
                 let hidden = name.as_deref().is_none_or(|n| n.starts_with('.'));
                 let not_a_log = path.extension().is_some_and(|e| {
-                    ["csv", "json", "key", "toml"]
+                    ["csv", "json", "key", "toml", "ulg", "parquet"]
                         .iter()
                         .any(|skip| e.eq_ignore_ascii_case(skip))
                 });

@@ -1,7 +1,8 @@
 //! `skyframe-log`: reads skyframe's binary flight logs (`shared/specs/log-format.md`), the
 //! successor of the thesis's ReadUavLogs.
 //!
-//! - `info`, `to-csv`, `to-ulog`: summaries and conversions;
+//! - `info`, `to-csv`, `to-ulog` (one ULog per flight), `to-parquet` (many flights):
+//!   summaries and conversions;
 //! - `plot FILE --series imu.p,servo.aileron -o out.png|svg`: series against log time;
 //! - `plot DIR --report OUT [--json]`: the thesis's standard figures (chapter 6.1.3) of a
 //!   flight directory, PNG and SVG, with the interval statistics per stream and format;
@@ -15,10 +16,12 @@
 mod bench;
 mod figure;
 mod flight;
+mod flightlog;
 mod info;
 mod input;
 mod plot;
 mod to_csv;
+mod to_parquet;
 mod to_ulog;
 
 use std::path::PathBuf;
@@ -71,18 +74,52 @@ enum Command {
         #[arg(long, value_name = "DIR")]
         out_dir: Option<PathBuf>,
     },
-    /// Convert a log file to a PX4 ULog file
+    /// Convert a flight (a directory of streams, or one .bin) to one PX4 ULog file
     ///
-    /// One ULog message `log_<index>` per format (`log_<index>_<n>` after a redefinition),
-    /// with a `timestamp` (µs) and the format's columns as fields. Byte arrays are not
-    /// converted.
+    /// Every stream of FLIGHT_DIR goes into one ULog on one clock (µs from the flight's
+    /// first record). Where a format means what a PX4 topic means, the topic is written with
+    /// PX4's name, fields, types and units (sensor_combined, vehicle_gps_position,
+    /// vehicle_attitude, vehicle_local_position, vehicle_global_position, actuator_outputs,
+    /// input_rc, battery_status, vehicle_status, vehicle_attitude_setpoint, tecs_status, …);
+    /// every format is also written as it was logged, as `skyframe_<what>` (skyframe_imu,
+    /// skyframe_executive, skyframe_task_timing, skyframe_device_status, …) with its columns
+    /// as fields. The control.* parameters (control.bin format 2) are ULog parameters, their
+    /// changes parameter messages; mode, estimator and device changes and every damage
+    /// report are logged messages; lost records are dropouts. docs/ulog.md has the mapping.
+    /// Byte arrays are not converted.
     ToUlog {
-        /// Binary log file.
-        #[arg(value_name = "FILE")]
-        file: PathBuf,
-        /// The ULog file to write.
+        /// A flight directory (its *.bin streams, and text logs <stream>.<index>.csv of
+        /// streams flown with --text-log), or one binary log or text log file.
+        #[arg(value_name = "FLIGHT_DIR|FILE")]
+        input: PathBuf,
+        /// The ULog file to write. Default: FLIGHT_DIR/flight.ulg, or FILE with `.ulg`.
         #[arg(short, long, value_name = "OUT.ulg")]
-        output: PathBuf,
+        output: Option<PathBuf>,
+        /// The vehicle's id (info `sys_uuid`); the logs do not record it. Default: unknown.
+        #[arg(long, value_name = "ID")]
+        vehicle_id: Option<String>,
+        /// The software version flown, e.g. its git hash (info `ver_sw`); the logs do not
+        /// record it. Default: unknown.
+        #[arg(long, value_name = "VERSION")]
+        ver_sw: Option<String>,
+    },
+    /// Convert many flights to Parquet: one file per stream and format, a row group per flight
+    ///
+    /// Writes DIR/<stream>.<index>.parquet with the columns flight_id (the flight
+    /// directory's name), vehicle_id, time_ns (log TIME, ns) and the format's columns, typed
+    /// as logged (uint8, int16, float32, float64, …). One row group per flight, so a reader
+    /// can skip flights. A flight whose format has another layout than the file's goes to
+    /// <stream>.<index>-<n>.parquet (noted on stderr). Byte arrays are not converted.
+    ToParquet {
+        /// Flight directories (their *.bin streams) or binary log files.
+        #[arg(required = true, value_name = "FLIGHT_DIR")]
+        inputs: Vec<PathBuf>,
+        /// Where to write the Parquet files (created if missing).
+        #[arg(long, value_name = "DIR")]
+        out_dir: PathBuf,
+        /// The vehicle id to write in every row (the logs do not record it). Default: unknown.
+        #[arg(long, value_name = "ID")]
+        vehicle_id: Option<String>,
     },
     /// Plot series against time, or draw a flight's standard figures (`--report`)
     ///
@@ -180,7 +217,25 @@ fn main() -> ExitCode {
     let outcome = match cli.command {
         Command::Info { files, gap_s } => info::run(&files, gap_s),
         Command::ToCsv { inputs, out_dir } => to_csv::run(&inputs, out_dir.as_deref()),
-        Command::ToUlog { file, output } => to_ulog::run(&file, &output),
+        Command::ToUlog {
+            input,
+            output,
+            vehicle_id,
+            ver_sw,
+        } => to_ulog::run(
+            &input,
+            output.as_deref(),
+            &to_ulog::UlogOptions {
+                px4_topics: true,
+                vehicle_id,
+                ver_sw,
+            },
+        ),
+        Command::ToParquet {
+            inputs,
+            out_dir,
+            vehicle_id,
+        } => to_parquet::run(&inputs, &out_dir, vehicle_id.as_deref()),
         Command::Plot {
             file,
             series,

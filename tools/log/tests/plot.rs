@@ -1,6 +1,7 @@
 //! `plot` on flights encoded with the core's encoders (docs/log-streams.md): the report's
 //! files, their image sizes and contents, its interval statistics, and `--series` errors.
 
+#[allow(dead_code)] // shared with flight_ulog.rs: each test crate uses part of it
 mod flight;
 
 use std::path::Path;

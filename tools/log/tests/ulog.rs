@@ -90,9 +90,9 @@ fn ulog_reads_back_with_pyulog() {
     assert_eq!(
         String::from_utf8_lossy(&dump.stdout),
         "skyframe\n\
-         log_1 timestamp,count,delta,x_m,y_m\n\
-         1500000,7,-2,1.5,0.25\n\
-         log_1_1 timestamp,timestamp_log,mode_id\n\
-         2250000,-5,200\n"
+         skyframe_flight timestamp,count,delta,x_m,y_m\n\
+         500000,7,-2,1.5,0.25\n\
+         skyframe_flight_1 timestamp,timestamp_log,mode_id\n\
+         1250000,-5,200\n"
     );
 }

@@ -237,3 +237,128 @@ pub fn write_flight(dir: &Path) {
     write_gps(dir);
     write_servo(dir);
 }
+
+pub const ESTIMATOR: LogFormat = LogFormat::new(
+    "%.5f,%.5f,%.5f,%.6f,%.6f,%.6f,%.6f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.6f,%.6f,%.6f,%.5f,%.5f,\
+     %.5f,%hhu",
+    "roll_rad,pitch_rad,yaw_rad,qw,qx,qy,qz,vn_m_s,ve_m_s,vd_m_s,pn_m,pe_m,pd_m,bgx_rad_s,\
+     bgy_rad_s,bgz_rad_s,bax_m_s2,bay_m_s2,baz_m_s2,healthy",
+);
+pub const CONTROL: LogFormat = LogFormat::new(
+    "%hhu,%hhu,%.4f,%.4f,%.4f,%.2f,%.2f,%.3f,%.3f,%.3f,%.3f,%.4f,%.4f,%.4f,%.2f,%.2f,%hhu,%hhu,\
+     %.3f,%.3f,%.3f,%.3f,%hhu,%.2f,%.2f",
+    "mode,reason,roll_rad,pitch_rad,course_rad,alt_m,speed_m_s,stick_aileron,stick_elevator,\
+     stick_throttle,stick_rudder,roll_c_rad,pitch_c_rad,course_c_rad,alt_c_m,speed_c_m_s,zone,\
+     waypoint,aileron,elevator,throttle,rudder,ready,wind_n_m_s,wind_e_m_s",
+);
+pub const CONTROL_GAINS: LogFormat = LogFormat::new(
+    "%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,\
+     %.2f,%.2f,%.2f,%.2f,%.2f",
+    "roll_kp,roll_ki,roll_kd,pitch_kp,pitch_ki,pitch_kd,course_kp,course_ki,alt_kp,alt_ki,\
+     alt_kd,speed_kp,speed_ki,speed_pitch_kp,speed_pitch_ki,yaw_damper,trim_elevator,\
+     trim_throttle,max_bank_deg,max_pitch_deg,stab_roll_deg,stab_pitch_deg,cruise_m_s",
+);
+
+/// The control gains at start; at 10 s `roll_kp` (the first) becomes 1.5.
+pub fn gains(t_s: f64) -> Vec<f64> {
+    let mut g = vec![
+        1.2, 0.1, 0.15, 2.0, 0.5, 0.1, 1.0, 0.05, 0.1, 0.01, 0.05, 0.2, 0.05, 0.1, 0.02, 0.3, 0.05,
+        0.55, 35.0, 20.0, 30.0, 15.0, 18.0,
+    ];
+    if t_s >= 10.0 {
+        g[0] = 1.5;
+    }
+    g
+}
+
+/// The flown mode at `t` s: manual (0) until 5 s, auto (2) until 15 s, then stabilise (1).
+pub fn mode(t: f64) -> u8 {
+    if t < 5.0 {
+        0
+    } else if t < 15.0 {
+        2
+    } else {
+        1
+    }
+}
+
+/// The estimate: 3-2-1 angles slowly turning, flying north at 10 m/s, 100 m above home.
+pub fn write_estimator(dir: &Path) {
+    let mut file = StreamFile::new(&[(1, ESTIMATOR)]);
+    for n in 0..SECONDS * 100 {
+        let t_ns = n * 10_000_000;
+        let t = t_ns as f64 * 1e-9;
+        let (roll, pitch, yaw) = (0.2 * (t / 3.0).sin(), 0.05, 0.3 + 0.01 * t);
+        let (sr, cr) = (roll / 2.0).sin_cos();
+        let (sp, cp) = (pitch / 2.0_f64).sin_cos();
+        let (sy, cy) = (yaw / 2.0).sin_cos();
+        let q = [
+            cr * cp * cy + sr * sp * sy,
+            sr * cp * cy - cr * sp * sy,
+            cr * sp * cy + sr * cp * sy,
+            cr * cp * sy - sr * sp * cy,
+        ];
+        let mut values = vec![
+            f(roll),
+            f(pitch),
+            f(yaw),
+            f(q[0]),
+            f(q[1]),
+            f(q[2]),
+            f(q[3]),
+        ];
+        values.extend([f(10.0), f(0.5), f(-0.2), f(10.0 * t), f(0.5 * t), f(-100.0)]);
+        values.extend((0..6).map(|_| f(0.001)));
+        values.push(Value::U8(u8::from(t >= 2.0)));
+        file.record(1, &ESTIMATOR, t_ns, &values);
+    }
+    file.finish(&dir.join("estimator.bin"));
+}
+
+/// The control loop at 50 Hz (targets NaN in manual, as the task logs them) and its gains
+/// at start and after the change at 10 s.
+pub fn write_control(dir: &Path) {
+    let mut file = StreamFile::new(&[(1, CONTROL), (2, CONTROL_GAINS)]);
+    let gains_record = |file: &mut StreamFile, t_ns: u64| {
+        let g: Vec<Value> = gains(t_ns as f64 * 1e-9).into_iter().map(f).collect();
+        file.record(2, &CONTROL_GAINS, t_ns, &g);
+    };
+    gains_record(&mut file, 0);
+    for n in 0..SECONDS * 50 {
+        let t_ns = n * 20_000_000;
+        let t = t_ns as f64 * 1e-9;
+        if n == 500 {
+            gains_record(&mut file, t_ns);
+        }
+        let m = mode(t);
+        let target = |x: f64| if m == 0 { f(f64::NAN) } else { f(x) };
+        let mut values = vec![Value::U8(m), Value::U8(0)];
+        values.extend([f(0.1), f(0.05), f(0.3), f(100.0), f(17.5)]);
+        values.extend([f(0.0), f(0.0), f(0.5), f(0.0)]);
+        values.extend([
+            target(0.25 * (t / 2.0).sin()),
+            target(0.04),
+            target(0.3),
+            target(120.0),
+            target(18.0),
+        ]);
+        values.extend([Value::U8(1), Value::U8(if m == 2 { 0 } else { 255 })]);
+        values.extend([
+            f(0.1),
+            f(-0.05),
+            f(0.6),
+            f(0.0),
+            Value::U8(u8::from(m != 0)),
+        ]);
+        values.extend([f(1.5), f(-0.5)]);
+        file.record(1, &CONTROL, t_ns, &values);
+    }
+    file.finish(&dir.join("control.bin"));
+}
+
+/// A flight with the estimator's and the autopilot's streams too.
+pub fn write_full_flight(dir: &Path) {
+    write_flight(dir);
+    write_estimator(dir);
+    write_control(dir);
+}
