@@ -357,3 +357,17 @@ fn a_full_disk_suspends_logging_which_resumes_when_space_returns() {
         "last IMU record {last_s}, space back at {freed_wall}"
     );
 }
+
+#[test]
+fn a_converter_given_nothing_to_convert_says_so_and_fails() {
+    let dir = scratch("hostile-empty");
+    let out = std::process::Command::new(skyframe_tests::binary("skyframe-log", "skyframe-log"))
+        .arg("to-csv")
+        .arg(&dir)
+        .output()
+        .expect("skyframe-log");
+    let text = stderr(&out);
+    assert_eq!(out.status.code(), Some(2), "{text}");
+    assert!(text.contains("no log files in this directory"), "{text}");
+    assert_eq!(text.lines().count(), 1, "{text}");
+}

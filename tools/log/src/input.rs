@@ -33,6 +33,14 @@ pub fn expand(inputs: &[PathBuf]) -> Result<Vec<PathBuf>, String> {
                     found.push(path);
                 }
             }
+            if found.is_empty() {
+                // Nothing to convert is a mistake (a wrong directory), not a success.
+                return Err(format!(
+                    "{}: no log files in this directory (binary logs; CSV, ULog, Parquet, JSON, \
+                     keys and TOML are skipped)",
+                    input.display()
+                ));
+            }
             found.sort();
             files.extend(found);
         } else {
