@@ -186,7 +186,7 @@ late_start_us = 500
     fn unreadable_and_malformed_files_say_where() {
         let missing = check_file(Path::new("/nonexistent/schedule.toml")).expect_err("error");
         assert!(
-            missing.starts_with("cannot read /nonexistent/schedule.toml"),
+            missing.starts_with("schedule /nonexistent/schedule.toml: "),
             "{missing}"
         );
         let path = write(

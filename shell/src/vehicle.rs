@@ -170,7 +170,7 @@ stale_ms = 100
         assert_eq!(e, "devices.servo.baud = 56000 is not a standard baud rate");
         let e = VehicleConfig::load(Path::new("/nonexistent/vehicle.toml")).expect_err("missing");
         assert!(
-            e.starts_with("cannot read /nonexistent/vehicle.toml"),
+            e.starts_with("vehicle /nonexistent/vehicle.toml: "),
             "{e}"
         );
     }
