@@ -99,20 +99,23 @@ fn an_overflowing_schedule_number_is_named_not_wrapped() {
 #[test]
 fn an_unknown_text_log_stream_is_an_error() {
     let dir = scratch("hostile-text-log");
-    let out = skyframe()
-        .args([
-            "sim",
-            "--fast",
-            "--duration",
-            "1",
-            "--no-link",
-            "--text-log",
-            "nosuch",
-        ])
-        .arg("--log-dir")
-        .arg(&dir)
-        .output()
-        .expect("runs");
+    let fly_with_text_log = |stream: &str| {
+        skyframe()
+            .args([
+                "sim",
+                "--fast",
+                "--duration",
+                "1",
+                "--no-link",
+                "--text-log",
+                stream,
+            ])
+            .arg("--log-dir")
+            .arg(&dir)
+            .output()
+            .expect("runs")
+    };
+    let out = fly_with_text_log("nosuch");
     let text = stderr(&out);
     assert_eq!(out.status.code(), Some(2), "{text}");
     assert!(
@@ -121,20 +124,7 @@ fn an_unknown_text_log_stream_is_an_error() {
         "{text}"
     );
     // A known one is still taken.
-    let out = skyframe()
-        .args([
-            "sim",
-            "--fast",
-            "--duration",
-            "1",
-            "--no-link",
-            "--text-log",
-            "gps",
-        ])
-        .arg("--log-dir")
-        .arg(&dir)
-        .output()
-        .expect("runs");
+    let out = fly_with_text_log("gps");
     assert!(out.status.success(), "{}", stderr(&out));
 }
 

@@ -26,6 +26,18 @@ struct Ground {
 }
 
 impl Ground {
+    /// A ground on a fresh loopback socket that has heard nothing yet, and its address.
+    fn listening() -> (Self, SocketAddr) {
+        let (socket, address) = ground_socket();
+        let ground = Self {
+            socket,
+            vehicle: None,
+            run_id: 0,
+            sequence: 0,
+        };
+        (ground, address)
+    }
+
     /// The next telemetry message (and when it came), or `None` after `within`.
     fn next(&mut self, within: Duration) -> Option<(Instant, Telemetry)> {
         let deadline = Instant::now() + within;
@@ -110,13 +122,7 @@ fn telemetry_commands_rates_and_a_clean_authenticated_stop() {
     let dir = scratch("link-e2e");
     let key = write_key(&dir.join("link.key"), 0x5a);
     let wrong = LinkKey::new([0x5b; 32]);
-    let (socket, telemetry) = ground_socket();
-    let mut ground = Ground {
-        socket,
-        vehicle: None,
-        run_id: 0,
-        sequence: 0,
-    };
+    let (mut ground, telemetry) = Ground::listening();
 
     let child = sim_on_link(&dir, telemetry, &["--duration", "60", "--json"])
         .stdout(Stdio::piped())
@@ -533,13 +539,7 @@ fn a_flood_of_forged_commands_does_not_lock_out_the_key_holder() {
     let dir = scratch("link-flood");
     let key = write_key(&dir.join("link.key"), 0x61);
     let forger_key = LinkKey::new([0x62; 32]);
-    let (socket, telemetry) = ground_socket();
-    let mut ground = Ground {
-        socket,
-        vehicle: None,
-        run_id: 0,
-        sequence: 0,
-    };
+    let (mut ground, telemetry) = Ground::listening();
     let child = sim_on_link(&dir, telemetry, &["--duration", "30", "--json"])
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())

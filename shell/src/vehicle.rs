@@ -169,9 +169,6 @@ stale_ms = 100
         let e = VehicleConfig::parse(&baud).expect_err("odd baud");
         assert_eq!(e, "devices.servo.baud = 56000 is not a standard baud rate");
         let e = VehicleConfig::load(Path::new("/nonexistent/vehicle.toml")).expect_err("missing");
-        assert!(
-            e.starts_with("vehicle /nonexistent/vehicle.toml: "),
-            "{e}"
-        );
+        assert!(e.starts_with("vehicle /nonexistent/vehicle.toml: "), "{e}");
     }
 }

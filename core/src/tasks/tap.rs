@@ -203,9 +203,14 @@ pub struct TappedSink<'a, S> {
 }
 
 impl<S: RecordSink> RecordSink for TappedSink<'_, S> {
+    /// The tap sees only what the log took: a record a full ring dropped is in neither, so
+    /// the ground never shows a value the log does not have.
     fn push_record(&mut self, record: &[u8]) -> bool {
-        self.tap.take_records(record);
-        self.inner.push_record(record)
+        let logged = self.inner.push_record(record);
+        if logged {
+            self.tap.take_records(record);
+        }
+        logged
     }
 }
 
@@ -238,6 +243,51 @@ mod tests {
             .finish()
             .expect("encodes");
         tap.take_records(&buf[..len]);
+    }
+
+    /// A log ring that takes records until it is "full".
+    struct Ring {
+        room: usize,
+    }
+
+    impl RecordSink for Ring {
+        fn push_record(&mut self, _record: &[u8]) -> bool {
+            let taken = self.room > 0;
+            self.room = self.room.saturating_sub(1);
+            taken
+        }
+    }
+
+    #[test]
+    fn a_record_the_log_dropped_is_not_shown_on_the_link_either() {
+        let tap = Tap::new();
+        declare(&tap, 1, &FORMAT);
+        let format = FORMAT.parse().expect("parses");
+        let mut sink = TappedSink {
+            inner: Ring { room: 1 },
+            tap: &tap,
+        };
+        for (t_ns, counter) in [(1_000, 1u8), (2_000, 2)] {
+            let mut buf = [0u8; 256];
+            let len = DataBlockWriter::new(&mut buf, 1, t_ns, &format)
+                .u8(counter)
+                .f32(0.0)
+                .f64(0.0)
+                .i16(0)
+                .finish()
+                .expect("encodes");
+            sink.push_record(&buf[..len]);
+        }
+        // The second record found the ring full: the latest on the link is the first.
+        let latest = tap.take_latest(1, false).expect("one was logged");
+        assert_eq!(latest.values[0], Value::U32(1));
+        assert_eq!(
+            latest.time,
+            Time {
+                sec: 0,
+                nsec: 1_000
+            }
+        );
     }
 
     #[test]

@@ -1300,7 +1300,10 @@ fn draw_estimator(frame: &mut Frame, area: Rect, vehicle: &VehicleState) {
         .map_or("?", |h| if h >= 0.5 { "healthy" } else { "UNHEALTHY" });
     let lines = vec![
         Line::from(format!("altitude {:.1} m above home", from_control("alt"))),
-        Line::from(format!("height {:.1} m above the filter's origin", -get("pd"))),
+        Line::from(format!(
+            "height {:.1} m above the filter's origin",
+            -get("pd")
+        )),
         Line::from(format!(
             "airspeed {:.1} m/s   ground speed {ground_speed:.1} m/s",
             from_control("speed")
