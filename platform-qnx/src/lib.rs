@@ -113,11 +113,42 @@ impl Platform for Qnx {
     fn serial_opener(&self) -> SerialOpener {
         serial::open
     }
+
+    fn free_space_probe(&self) -> Option<skyframe_shell::platform::FreeSpaceProbe> {
+        Some(free_space)
+    }
+}
+
+/// Bytes an unprivileged process may still write where `path` is: POSIX `statvfs`
+/// (available blocks × fragment size), through libc as everything here.
+#[allow(unsafe_code)]
+#[allow(clippy::useless_conversion)] // the field types differ between targets
+fn free_space(path: &std::path::Path) -> std::io::Result<u64> {
+    use std::os::unix::ffi::OsStrExt;
+    let c_path = std::ffi::CString::new(path.as_os_str().as_bytes())
+        .map_err(|_| std::io::Error::from(std::io::ErrorKind::InvalidInput))?;
+    let mut stat = std::mem::MaybeUninit::<libc::statvfs>::zeroed();
+    // SAFETY: `c_path` is a NUL-terminated string that outlives the call; `stat` points to
+    // writable memory of the struct's size, which statvfs fills on success (zeroed before).
+    let rc = unsafe { libc::statvfs(c_path.as_ptr(), stat.as_mut_ptr()) };
+    if rc != 0 {
+        return Err(std::io::Error::last_os_error());
+    }
+    // SAFETY: statvfs returned 0, so it wrote the struct (and it was zeroed before anyway).
+    let stat = unsafe { stat.assume_init() };
+    Ok(u64::from(stat.f_bavail).saturating_mul(u64::from(stat.f_frsize)))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn free_space_is_measured_and_a_missing_path_is_an_error() {
+        let free = free_space(&std::env::temp_dir()).expect("statvfs");
+        assert!(free > 0);
+        assert!(free_space(std::path::Path::new("/nonexistent/dir")).is_err());
+    }
 
     #[test]
     fn the_timer_wakes_at_the_absolute_deadline_not_before() {
