@@ -7,7 +7,9 @@ use libfuzzer_sys::fuzz_target;
 use skyframe_core::link::frame::{Verify, decode_datagram, encode_datagram};
 use skyframe_core::link::messages::Message;
 use skyframe_core::link::wire::Writer;
-use skyframe_core::link::{CommandGate, GateConfig, LinkKey, ParamTable, Value};
+use skyframe_core::link::auth::screen_command;
+use skyframe_core::link::ingress::IngressCounters;
+use skyframe_core::link::{CommandGate, GateConfig, LinkCounters, LinkKey, ParamTable, Value};
 
 /// The key of the worked examples in docs/link-protocol.md (bytes 0x00..=0x1f), so the
 /// signed example in the seed corpus authenticates.
@@ -46,7 +48,17 @@ fuzz_target!(|data: &[u8]| {
             task_count: 8,
         },
     );
-    let _ = gate.accept(data, 0, &params);
+    // The socket thread's screen (what it drops before queueing) and the gate agree: a
+    // datagram the screen refuses, the gate refuses for the same reason.
+    let screened = screen_command(data, &key, 7).map(|_| ());
+    let gated = gate.accept(data, 0, &params);
+    if let Err(reason) = screened {
+        assert_eq!(gated.map(|_| ()).map_err(|r| r.reason), Err(reason));
+        let ingress = IngressCounters::new();
+        ingress.screened_out(reason);
+        let all = ingress.added_to(&LinkCounters::default());
+        assert_eq!((all.received, all.rejected()), (1, 1));
+    }
     let c = gate.counters();
     assert_eq!(c.received, c.accepted + c.rejected());
 
