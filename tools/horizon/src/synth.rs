@@ -148,6 +148,22 @@ fn fbm(seed: u64, x: f32, y: f32, octaves: u32) -> f32 {
 pub struct Truth {
     pub roll_deg: f32,
     pub pitch_deg: f32,
+    /// Whether the horizon can be seen at all (out of the frame, fogged or clipped away:
+    /// no). A frame without one is scored only on honesty.
+    pub visible: bool,
+}
+
+/// Header of `truth.csv`; `visible` is 1 when the horizon can be seen in the frame.
+pub const TRUTH_HEADER: &str = "frame,roll_deg,pitch_deg,visible\n";
+
+/// One line of `truth.csv`.
+pub fn truth_line(frame: usize, t: &Truth) -> String {
+    format!(
+        "{frame},{:.4},{:.4},{}\n",
+        t.roll_deg,
+        t.pitch_deg,
+        u8::from(t.visible)
+    )
 }
 
 /// A flight-like trajectory: banked turns with faster wobble, pitch changes of a few degrees,
@@ -165,6 +181,7 @@ pub fn trajectory(frame: usize, seed: u64) -> (Truth, f32) {
         Truth {
             roll_deg: roll,
             pitch_deg: pitch,
+            visible: true,
         },
         heading,
     )

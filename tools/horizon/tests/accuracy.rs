@@ -41,8 +41,8 @@ fn check(degradation: Degradation, bounds: Bounds) {
         a.wrong_confident
     );
     assert!(
-        a.within_2deg >= bounds.within_2deg,
-        "{name}: {:.2} of frames within 2°, want ≥ {:.2}",
+        a.within_2deg.unwrap_or(0.0) >= bounds.within_2deg,
+        "{name}: {:?} of frames within 2°, want ≥ {:.2}",
         a.within_2deg,
         bounds.within_2deg
     );
