@@ -18,6 +18,7 @@ mod camera;
 mod edges;
 mod frame;
 mod hough;
+mod profile;
 #[cfg(test)]
 mod tests;
 
@@ -213,6 +214,10 @@ struct Track {
     line: HorizonLine,
     /// Frames since the last continuation.
     misses: u8,
+    /// Confidence of the answer the track was last set from: a track the detector was
+    /// unsure of holds candidates back less (the jump factor scales with it), so that a
+    /// low-confidence wrong line taken on a bad frame does not lock the next frames out.
+    confidence: f32,
 }
 
 /// A candidate after refinement and validation.
@@ -454,8 +459,10 @@ impl HorizonDetector {
         let best_overall = best_of(&scored, |_| true).ok_or(Outcome::NoCandidate)?;
         let best_continuation = best_of(&scored, |s| s.continues_track);
         let mut jumped = false;
+        let track_confidence = self.track.map_or(1.0, |t| t.confidence.clamp(0.0, 1.0));
+        let jump_factor = 1.0 + (self.config.jump_factor - 1.0) * track_confidence;
         let chosen = match best_continuation {
-            Some(c) if c.score * self.config.jump_factor >= best_overall.score => c,
+            Some(c) if c.score * jump_factor >= best_overall.score => c,
             _ => {
                 jumped = self.track.is_some();
                 best_overall
@@ -463,6 +470,40 @@ impl HorizonDetector {
         };
         if chosen.explained < MIN_EXPLAINED {
             return Err(Outcome::NoCandidate);
+        }
+
+        // 7b: the horizon is the highest sky/ground boundary. A strong ground edge (a road,
+        // a shore, a field edge, the border of a glare-washed haze band) can out-score a faint
+        // horizon above it; an edge of the same polarity and direction above the chosen one,
+        // with textured ground between the two and smooth sky above, is the horizon.
+        let sky_brighter = libm::fabsf(wrap_angle(
+            chosen.horizon.camera_roll_rad - (chosen.line.angle + PI),
+        )) < 0.5 * PI;
+        let context = LineContext {
+            camera: &camera,
+            geo,
+            rho,
+            edges: edge_points,
+            samples,
+            max_radius2,
+            bands: &bands,
+            max_angle_difference,
+        };
+        let mut chosen = chosen;
+        let mut climbed = false;
+        for _ in 0..2 {
+            match higher_edge(&context, ws.accumulator, &chosen, sky_brighter, min_votes) {
+                Some(upper) => {
+                    chosen = Scored {
+                        continues_track: self
+                            .track
+                            .is_some_and(|t| self.in_gate(&t.line, &upper.horizon)),
+                        ..upper
+                    };
+                    climbed = true;
+                }
+                None => break,
+            }
         }
 
         // Confidence: the line must split the frame into clearly different halves, be drawn
@@ -488,6 +529,16 @@ impl HorizonDetector {
             confidence *= 0.7;
         }
 
+        // 8: the line's place in the transition, at full resolution (see `profile`). The
+        // search reaches past the coarse line's smoothing on the sky side.
+        let search_px = (3 * geo.scale + 3) as f32;
+        let (placed, _placement) =
+            profile::place(frame, &camera, chosen.horizon, search_px, sky_brighter);
+        let chosen = Scored {
+            horizon: placed,
+            ..chosen
+        };
+
         let misses = if chosen.continues_track || self.track.is_none() {
             0
         } else {
@@ -500,11 +551,13 @@ impl HorizonDetector {
                 Some(Track {
                     line: old.line,
                     misses,
+                    confidence: old.confidence,
                 })
             }
             _ => Some(Track {
                 line: chosen.horizon,
                 misses: 0,
+                confidence,
             }),
         };
 
@@ -547,6 +600,107 @@ impl HorizonDetector {
         roll_difference <= self.config.gate_roll_deg * PI / 180.0
             && libm::fabsf(candidate.offset - tracked.offset) <= self.config.gate_offset
     }
+}
+
+/// What scoring a line needs besides the line.
+struct LineContext<'a> {
+    camera: &'a Camera,
+    geo: Working,
+    rho: RhoAxis,
+    edges: &'a [EdgePoint],
+    samples: &'a [Sample],
+    max_radius2: f32,
+    bands: &'a [f32],
+    max_angle_difference: f32,
+}
+
+/// Farthest the search for a higher edge reaches above the chosen line (normalised units,
+/// tan 15°): ground edges that out-score the horizon lie within a few degrees of it.
+const HIGHER_EDGE_REACH: f32 = 0.27;
+/// Ground between two edges is this much more textured than the sky above the upper one.
+const GROUND_TEXTURE_RATIO: f32 = 1.5;
+
+/// The edge above `chosen` (same direction within 2°, same polarity) that is the real
+/// horizon, if there is one: it must separate the frame at least half as well, be drawn along
+/// a third of its length, and have textured ground between it and `chosen` under smooth sky.
+fn higher_edge(
+    c: &LineContext<'_>,
+    accumulator: &[u16],
+    chosen: &Scored,
+    sky_brighter: bool,
+    min_votes: u16,
+) -> Option<Scored> {
+    let bins = c.rho.bins();
+    let centre = hough::angle_bin(chosen.line.angle);
+    let start = c.rho.index(chosen.line.rho)? as isize;
+    let sign: isize = if sky_brighter { 1 } else { -1 };
+    let reach = (HIGHER_EDGE_REACH / c.rho.step) as isize;
+    let mut best = Peak::default();
+    for da in 0..5 {
+        let a = (centre + ANGLE_BINS + da - 2) % ANGLE_BINS;
+        for k in 4..=reach {
+            let r = start + sign * k;
+            if r < 0 || r >= bins as isize {
+                break;
+            }
+            let votes = accumulator.get(a * bins + r as usize).copied().unwrap_or(0);
+            if votes > best.votes {
+                best = Peak {
+                    angle: a,
+                    rho: r as usize,
+                    votes,
+                };
+            }
+        }
+    }
+    if best.votes < min_votes {
+        return None;
+    }
+    let start_line = Line {
+        angle: best.angle as f32 * hough::ANGLE_STEP,
+        rho: c.rho.value(best.rho),
+    };
+    let (line, inliers) = hough::refine(c.edges, start_line, c.bands, c.max_angle_difference)?;
+    let sky_ward = if sky_brighter { 1.0 } else { -1.0 };
+    let parallel = libm::fabsf(wrap_angle(line.angle - chosen.line.angle)) < 3.0 * PI / 180.0;
+    if !parallel || sky_ward * (line.rho - chosen.line.rho) < 2.0 * c.rho.step {
+        return None;
+    }
+    let expected = expected_edge_pixels(c.camera, c.geo, line, c.rho, c.max_radius2);
+    if expected < 4.0 {
+        return None;
+    }
+    let coverage = (inliers as f32 / expected).min(1.0);
+    let separation = hough::separation(c.samples, line, 2.0 * c.rho.step);
+    if coverage < 0.33 || separation.explained < 0.5 * chosen.explained {
+        return None;
+    }
+    let texture = hough::band_textures(c.samples, chosen.line, line, sky_ward, c.rho.step);
+    if texture.between_count < 8
+        || texture.above_count < 8
+        || texture.between < GROUND_TEXTURE_RATIO * texture.above + 0.5
+    {
+        return None;
+    }
+    let horizon = if sky_brighter {
+        HorizonLine {
+            camera_roll_rad: wrap_angle(line.angle + PI),
+            offset: -line.rho,
+        }
+    } else {
+        HorizonLine {
+            camera_roll_rad: wrap_angle(line.angle),
+            offset: line.rho,
+        }
+    };
+    Some(Scored {
+        line,
+        horizon,
+        explained: separation.explained,
+        coverage,
+        score: separation.explained * coverage,
+        continues_track: false,
+    })
 }
 
 fn best_of(scored: &[Option<Scored>], keep: impl Fn(&Scored) -> bool) -> Option<Scored> {
