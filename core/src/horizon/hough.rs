@@ -339,7 +339,7 @@ impl Moments {
 }
 
 /// Luma at and above which a sample counts as clipped.
-const SATURATED: f32 = 248.0;
+pub(crate) const SATURATED: f32 = 248.0;
 
 /// Splits the samples by the line (leaving out a band `band` wide around it, where pixels mix
 /// both sides) and measures how well the two sides separate.

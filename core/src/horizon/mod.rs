@@ -251,6 +251,11 @@ const MIN_WORKING_WIDTH: usize = 80;
 const MIN_EDGES: usize = 16;
 /// Candidates must explain at least this share of the frame's variance to be a horizon.
 const MIN_EXPLAINED: f32 = 0.08;
+/// Confidence lost per share of the frame clipped (a quarter of the frame clipped: none
+/// left) ...
+const CLIPPED_FRAME_WEIGHT: f32 = 4.0;
+/// ... and per share of the sky clipped right above the line.
+const CLIPPED_SKY_WEIGHT: f32 = 2.0;
 
 impl HorizonDetector {
     pub fn new(camera: Camera) -> Self {
@@ -508,10 +513,15 @@ impl HorizonDetector {
 
         // Confidence: the line must split the frame into clearly different halves, be drawn
         // by edges along most of its length, and have no comparable rival elsewhere.
+        // A ground edge the search climbed over is below the horizon by construction, not a
+        // rival to it.
+        let climbed_over = |s: &Scored| {
+            climbed && libm::fabsf(wrap_angle(s.line.angle - chosen.line.angle)) < 3.0 * PI / 180.0
+        };
         let rival = scored
             .iter()
             .flatten()
-            .filter(|s| !same_line(s.line, chosen.line, rho.step))
+            .filter(|s| !same_line(s.line, chosen.line, rho.step) && !climbed_over(s))
             .map(|s| s.score)
             .fold(0.0f32, f32::max);
         let explained_term = ((chosen.explained - 0.15) / 0.45).clamp(0.0, 1.0);
@@ -532,8 +542,20 @@ impl HorizonDetector {
         // 8: the line's place in the transition, at full resolution (see `profile`). The
         // search reaches past the coarse line's smoothing on the sky side.
         let search_px = (3 * geo.scale + 3) as f32;
-        let (placed, _placement) =
+        let (placed, placement) =
             profile::place(frame, &camera, chosen.horizon, search_px, sky_brighter);
+
+        // Honesty about what the frame can show. Clipped pixels (the sun and its bloom in
+        // view, an over-exposed sky) hide where the sky ends: the edge found may be where the
+        // clipping ends, and the horizon may be anywhere under it. A line with no clear edge
+        // at full resolution is a guess from the binned image.
+        let clipped = samples.iter().filter(|s| s.luma >= hough::SATURATED).count();
+        let clipped_share = clipped as f32 / samples.len().max(1) as f32;
+        confidence *= (1.0 - CLIPPED_FRAME_WEIGHT * clipped_share).clamp(0.0, 1.0);
+        confidence *= (1.0 - CLIPPED_SKY_WEIGHT * placement.clipped_sky).clamp(0.0, 1.0);
+        if placement.significance < profile::MIN_SIGNIFICANCE {
+            confidence *= 0.5;
+        }
         let chosen = Scored {
             horizon: placed,
             ..chosen

@@ -28,7 +28,7 @@ const BINS: usize = 2 * HALF_BINS + 1;
 const BIN_PX: f32 = 0.5;
 /// Least ratio of the edge's gradient to the profile's gradient noise for the position to be
 /// trusted (below it the coarse line stays).
-const MIN_SIGNIFICANCE: f32 = 4.0;
+pub(crate) const MIN_SIGNIFICANCE: f32 = 4.0;
 /// Largest roll change the two half-profiles may make (rad): more means the halves see
 /// different edges (an occlusion, a curved shore), and only the offset is moved.
 const MAX_ROLL_CHANGE: f32 = 0.03;

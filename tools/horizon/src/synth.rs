@@ -342,7 +342,10 @@ impl Renderer {
                 *o = v.round().clamp(0.0, 255.0) as u8;
             }
         }
-        (image, truth)
+        // Over-exposure can clip sky and distant ground alike: then there is no horizon in
+        // the image to find, and the frame is scored on honesty only.
+        let visible = crate::terrain::horizon_in_image(&image, &self.camera, roll, pitch);
+        (image, Truth { visible, ..truth })
     }
 
     fn degrade(

@@ -589,7 +589,7 @@ impl TerrainRenderer {
 /// quarter of the frame's width, and across it the image changes (mean luma 1 to 3 pixels
 /// either side differs by at least 3 levels, and not both sides are clipped). An
 /// over-exposed frame whose sky and distant ground both clip has no horizon to find.
-fn horizon_in_image(image: &Image, cam: &Camera, roll: f32, pitch: f32) -> bool {
+pub fn horizon_in_image(image: &Image, cam: &Camera, roll: f32, pitch: f32) -> bool {
     let (w, h) = (image.width, image.height);
     let (s, c, o) = (roll.sin(), roll.cos(), pitch.tan());
     let (mut sky, mut ground, mut n_sky, mut n_ground) = (0.0f64, 0.0f64, 0u32, 0u32);
