@@ -158,8 +158,12 @@ pub struct DetectorConfig {
     pub vote_window_deg: u8,
     /// Candidates validated each frame (at most [`MAX_CANDIDATES`]).
     pub candidates: u8,
-    /// Never take gradient magnitudes (`|gx| + |gy|`, Sobel) below this as edges.
+    /// Never take gradient magnitudes (`|gx| + |gy|`, Sobel) below this as edges ...
     pub min_gradient: u16,
+    /// ... nor below this many times the frame's noise level (the 30th percentile of the
+    /// magnitude): a fixed floor high enough for noisy frames drops every edge of an
+    /// under-exposed one, whose noise is as dim as its horizon.
+    pub noise_floor_factor: u8,
     /// Target edge pixels before thinning, per working pixel of perimeter.
     pub edge_pixels_per_perimeter_pixel: u16,
     /// A candidate this close to the tracked horizon in roll (deg) ...
@@ -182,7 +186,8 @@ impl Default for DetectorConfig {
         DetectorConfig {
             vote_window_deg: 6,
             candidates: 8,
-            min_gradient: 40,
+            min_gradient: 20,
+            noise_floor_factor: 3,
             edge_pixels_per_perimeter_pixel: 10,
             gate_roll_deg: 10.0,
             gate_offset: 0.08,
@@ -363,10 +368,15 @@ impl HorizonDetector {
 
         // 2–3: gradient, thinned and undistorted edge points.
         let perimeter = geo.width + geo.height;
+        let floor = self.config.min_gradient.max(
+            histogram
+                .percentile(NOISE_PERCENTILE)
+                .saturating_mul(u16::from(self.config.noise_floor_factor)),
+        );
         let threshold = histogram.threshold(
             geo,
             usize::from(self.config.edge_pixels_per_perimeter_pixel) * perimeter,
-            self.config.min_gradient,
+            floor,
         );
         let edge_stats = edges::collect_edges(ws.grey, geo, ws.rows, threshold, &camera, ws.edges);
         let edge_points = ws.edges.get(..edge_stats.count).unwrap_or(&[]);
@@ -549,7 +559,10 @@ impl HorizonDetector {
         // view, an over-exposed sky) hide where the sky ends: the edge found may be where the
         // clipping ends, and the horizon may be anywhere under it. A line with no clear edge
         // at full resolution is a guess from the binned image.
-        let clipped = samples.iter().filter(|s| s.luma >= hough::SATURATED).count();
+        let clipped = samples
+            .iter()
+            .filter(|s| s.luma >= hough::SATURATED)
+            .count();
         let clipped_share = clipped as f32 / samples.len().max(1) as f32;
         confidence *= (1.0 - CLIPPED_FRAME_WEIGHT * clipped_share).clamp(0.0, 1.0);
         confidence *= (1.0 - CLIPPED_SKY_WEIGHT * placement.clipped_sky).clamp(0.0, 1.0);

@@ -88,14 +88,17 @@ impl Profile {
     /// Mean luma per bin, gaps filled linearly; `None` if the profile has too few bins.
     fn means(&self) -> Option<[f32; BINS]> {
         let mut m = [f32::NAN; BINS];
-        let mut filled = 0;
-        for ((out, &s), &c) in m.iter_mut().zip(&self.sum).zip(&self.count) {
+        let (mut filled, mut first, mut last) = (0usize, BINS, 0usize);
+        for (i, ((out, &s), &c)) in m.iter_mut().zip(&self.sum).zip(&self.count).enumerate() {
             if c > 0 {
                 *out = s / c as f32;
                 filled += 1;
+                first = first.min(i);
+                last = i;
             }
         }
-        if filled < BINS / 3 {
+        // A level line fills only every other bin; fewer than that is not a profile.
+        if first >= last || last - first < 8 || 3 * filled < last - first + 1 {
             return None;
         }
         // Gaps (a level line fills only every other bin) from the nearest filled bins.
