@@ -186,7 +186,7 @@ impl Default for DetectorConfig {
         DetectorConfig {
             vote_window_deg: 6,
             candidates: 8,
-            min_gradient: 20,
+            min_gradient: 12,
             noise_floor_factor: 3,
             edge_pixels_per_perimeter_pixel: 10,
             gate_roll_deg: 10.0,
@@ -219,10 +219,6 @@ struct Track {
     line: HorizonLine,
     /// Frames since the last continuation.
     misses: u8,
-    /// Confidence of the answer the track was last set from: a track the detector was
-    /// unsure of holds candidates back less (the jump factor scales with it), so that a
-    /// low-confidence wrong line taken on a bad frame does not lock the next frames out.
-    confidence: f32,
 }
 
 /// A candidate after refinement and validation.
@@ -474,10 +470,8 @@ impl HorizonDetector {
         let best_overall = best_of(&scored, |_| true).ok_or(Outcome::NoCandidate)?;
         let best_continuation = best_of(&scored, |s| s.continues_track);
         let mut jumped = false;
-        let track_confidence = self.track.map_or(1.0, |t| t.confidence.clamp(0.0, 1.0));
-        let jump_factor = 1.0 + (self.config.jump_factor - 1.0) * track_confidence;
         let chosen = match best_continuation {
-            Some(c) if c.score * jump_factor >= best_overall.score => c,
+            Some(c) if c.score * self.config.jump_factor >= best_overall.score => c,
             _ => {
                 jumped = self.track.is_some();
                 best_overall
@@ -586,13 +580,11 @@ impl HorizonDetector {
                 Some(Track {
                     line: old.line,
                     misses,
-                    confidence: old.confidence,
                 })
             }
             _ => Some(Track {
                 line: chosen.horizon,
                 misses: 0,
-                confidence,
             }),
         };
 

@@ -802,3 +802,82 @@ fn interference(image: &mut Image, rng: &mut Rng, index: usize) {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The renderer's world geometry is the conventions' horizon line: a ray is on the ground
+    /// exactly where `sin φ·x + cos φ·y > tan θ`.
+    #[test]
+    fn ground_side_is_the_conventions_line() {
+        let mut rng = Rng::new(3);
+        for _ in 0..2000 {
+            let (roll, pitch, heading) = (
+                rng.range(-3.0, 3.0),
+                rng.range(-1.2, 1.2),
+                rng.range(-3.0, 3.0),
+            );
+            let (x, y) = (rng.range(-1.0, 1.0), rng.range(-1.0, 1.0));
+            let lhs = roll.sin() * x + roll.cos() * y - pitch.tan();
+            if lhs.abs() < 1e-3 {
+                continue;
+            }
+            let down = to_world(x, y, roll, pitch, heading)[2];
+            assert_eq!(down > 0.0, lhs > 0.0, "roll {roll} pitch {pitch} at ({x}, {y})");
+        }
+    }
+
+    /// World → body is the inverse of body → world.
+    #[test]
+    fn to_body_inverts_to_world() {
+        let (roll, pitch, heading) = (0.4, -0.2, 2.0);
+        let d = to_world(0.3, -0.1, roll, pitch, heading);
+        let b = to_body(d, roll, pitch, heading);
+        let n = (1.0f32 + 0.09 + 0.01).sqrt();
+        for (got, want) in b.iter().zip([1.0 / n, 0.3 / n, -0.1 / n]) {
+            assert!((got - want).abs() < 1e-5, "{b:?}");
+        }
+    }
+
+    /// A pixel's samples average to its centre, the integer point: no half-pixel slip.
+    #[test]
+    fn a_pixels_samples_average_to_its_centre() {
+        let offsets = [
+            (-0.375f32, -0.125f32),
+            (0.125, -0.375),
+            (0.375, 0.125),
+            (-0.125, 0.375),
+        ];
+        let (su, sv) = offsets
+            .iter()
+            .fold((0.0, 0.0), |(a, b), (u, v)| (a + u, b + v));
+        assert_eq!((su, sv), (0.0, 0.0));
+        // And a frame's truth is where its sky meets its ground: on a clean level frame the
+        // rows above the true line are brighter than those below, within a pixel.
+        let r = TerrainRenderer::new(Class::Clean, 160, 120, 4);
+        let (image, truth) = r.render(0);
+        assert!(truth.visible);
+        let (roll, pitch) = (truth.roll_deg.to_radians(), truth.pitch_deg.to_radians());
+        let cam = r.camera;
+        let (mut above, mut below, mut n_above, mut n_below) = (0.0f64, 0.0f64, 0u32, 0u32);
+        for v in 0..120 {
+            for u in 0..160 {
+                let Some((x, y)) = cam.undistort_pixel(u as f32, v as f32) else {
+                    continue;
+                };
+                let d = (roll.sin() * x + roll.cos() * y - pitch.tan()) * cam.fy;
+                let luma = f64::from(image.data[(v * 160 + u) * 3 + 1]);
+                if (-1.5..-0.5).contains(&d) {
+                    above += luma;
+                    n_above += 1;
+                } else if (0.5..1.5).contains(&d) {
+                    below += luma;
+                    n_below += 1;
+                }
+            }
+        }
+        let (above, below) = (above / f64::from(n_above), below / f64::from(n_below));
+        assert!(above > below, "sky {above} not brighter than ground {below}");
+    }
+}
