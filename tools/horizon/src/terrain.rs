@@ -824,7 +824,11 @@ mod tests {
                 continue;
             }
             let down = to_world(x, y, roll, pitch, heading)[2];
-            assert_eq!(down > 0.0, lhs > 0.0, "roll {roll} pitch {pitch} at ({x}, {y})");
+            assert_eq!(
+                down > 0.0,
+                lhs > 0.0,
+                "roll {roll} pitch {pitch} at ({x}, {y})"
+            );
         }
     }
 
@@ -878,6 +882,9 @@ mod tests {
             }
         }
         let (above, below) = (above / f64::from(n_above), below / f64::from(n_below));
-        assert!(above > below, "sky {above} not brighter than ground {below}");
+        assert!(
+            above > below,
+            "sky {above} not brighter than ground {below}"
+        );
     }
 }
