@@ -110,8 +110,15 @@ impl Camera {
             if factor.is_nan() || factor <= 0.05 {
                 return None;
             }
-            x = xd / factor;
-            y = yd / factor;
+            let (nx, ny) = (xd / factor, yd / factor);
+            // Settled (1e-7 normalised is ~1e-4 px): the remaining iterations would change
+            // nothing, and this runs for every edge point and sample of a distorted camera.
+            let settled = libm::fabsf(nx - x) + libm::fabsf(ny - y) < 1e-7;
+            x = nx;
+            y = ny;
+            if settled {
+                break;
+            }
         }
         // Reject a point where the iteration did not settle (outside the invertible region).
         let (cx, cy) = self.distort_normalised(x, y);

@@ -339,7 +339,7 @@ impl Moments {
 }
 
 /// Luma at and above which a sample counts as clipped.
-const SATURATED: f32 = 248.0;
+pub(crate) const SATURATED: f32 = 248.0;
 
 /// Splits the samples by the line (leaving out a band `band` wide around it, where pixels mix
 /// both sides) and measures how well the two sides separate.
@@ -384,5 +384,47 @@ pub(crate) fn separation(samples: &[Sample], line: Line, band: f32) -> Separatio
     Separation {
         explained,
         bright_is_sky,
+    }
+}
+
+/// Mean texture of the samples between two parallel lines and beyond the second one.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct BandTextures {
+    pub between: f32,
+    pub between_count: u32,
+    pub above: f32,
+    pub above_count: u32,
+}
+
+/// Texture between `lower` and `upper` and beyond `upper`, "beyond" being the direction
+/// `sky_ward` (±1) along the lines' normals; `margin` leaves out the pixels on the edges.
+pub(crate) fn band_textures(
+    samples: &[Sample],
+    lower: Line,
+    upper: Line,
+    sky_ward: f32,
+    margin: f32,
+) -> BandTextures {
+    let (lx, ly) = lower.normal();
+    let (ux, uy) = upper.normal();
+    let (mut between, mut above) = ((0.0f32, 0u32), (0.0f32, 0u32));
+    for s in samples {
+        if s.luma >= SATURATED {
+            continue;
+        }
+        let from_lower = sky_ward * (s.x * lx + s.y * ly - lower.rho);
+        let from_upper = sky_ward * (s.x * ux + s.y * uy - upper.rho);
+        if from_upper > margin {
+            above = (above.0 + s.texture, above.1 + 1);
+        } else if from_lower > margin && from_upper < -margin {
+            between = (between.0 + s.texture, between.1 + 1);
+        }
+    }
+    let mean = |(sum, n): (f32, u32)| if n > 0 { sum / n as f32 } else { 0.0 };
+    BandTextures {
+        between: mean(between),
+        between_count: between.1,
+        above: mean(above),
+        above_count: above.1,
     }
 }

@@ -18,6 +18,7 @@ mod camera;
 mod edges;
 mod frame;
 mod hough;
+mod profile;
 #[cfg(test)]
 mod tests;
 
@@ -157,8 +158,12 @@ pub struct DetectorConfig {
     pub vote_window_deg: u8,
     /// Candidates validated each frame (at most [`MAX_CANDIDATES`]).
     pub candidates: u8,
-    /// Never take gradient magnitudes (`|gx| + |gy|`, Sobel) below this as edges.
+    /// Never take gradient magnitudes (`|gx| + |gy|`, Sobel) below this as edges ...
     pub min_gradient: u16,
+    /// ... nor below this many times the frame's noise level (the 30th percentile of the
+    /// magnitude): a fixed floor high enough for noisy frames drops every edge of an
+    /// under-exposed one, whose noise is as dim as its horizon.
+    pub noise_floor_factor: u8,
     /// Target edge pixels before thinning, per working pixel of perimeter.
     pub edge_pixels_per_perimeter_pixel: u16,
     /// A candidate this close to the tracked horizon in roll (deg) ...
@@ -181,7 +186,8 @@ impl Default for DetectorConfig {
         DetectorConfig {
             vote_window_deg: 6,
             candidates: 8,
-            min_gradient: 40,
+            min_gradient: 12,
+            noise_floor_factor: 3,
             edge_pixels_per_perimeter_pixel: 10,
             gate_roll_deg: 10.0,
             gate_offset: 0.08,
@@ -246,6 +252,11 @@ const MIN_WORKING_WIDTH: usize = 80;
 const MIN_EDGES: usize = 16;
 /// Candidates must explain at least this share of the frame's variance to be a horizon.
 const MIN_EXPLAINED: f32 = 0.08;
+/// Confidence lost per share of the frame clipped (a quarter of the frame clipped: none
+/// left) ...
+const CLIPPED_FRAME_WEIGHT: f32 = 4.0;
+/// ... and per share of the sky clipped right above the line.
+const CLIPPED_SKY_WEIGHT: f32 = 2.0;
 
 impl HorizonDetector {
     pub fn new(camera: Camera) -> Self {
@@ -353,10 +364,15 @@ impl HorizonDetector {
 
         // 2–3: gradient, thinned and undistorted edge points.
         let perimeter = geo.width + geo.height;
+        let floor = self.config.min_gradient.max(
+            histogram
+                .percentile(NOISE_PERCENTILE)
+                .saturating_mul(u16::from(self.config.noise_floor_factor)),
+        );
         let threshold = histogram.threshold(
             geo,
             usize::from(self.config.edge_pixels_per_perimeter_pixel) * perimeter,
-            self.config.min_gradient,
+            floor,
         );
         let edge_stats = edges::collect_edges(ws.grey, geo, ws.rows, threshold, &camera, ws.edges);
         let edge_points = ws.edges.get(..edge_stats.count).unwrap_or(&[]);
@@ -465,12 +481,51 @@ impl HorizonDetector {
             return Err(Outcome::NoCandidate);
         }
 
+        // 7b: the horizon is the highest sky/ground boundary. A strong ground edge (a road,
+        // a shore, a field edge, the border of a glare-washed haze band) can out-score a faint
+        // horizon above it; an edge of the same polarity and direction above the chosen one,
+        // with textured ground between the two and smooth sky above, is the horizon.
+        let sky_brighter = libm::fabsf(wrap_angle(
+            chosen.horizon.camera_roll_rad - (chosen.line.angle + PI),
+        )) < 0.5 * PI;
+        let context = LineContext {
+            camera: &camera,
+            geo,
+            rho,
+            edges: edge_points,
+            samples,
+            max_radius2,
+            bands: &bands,
+            max_angle_difference,
+        };
+        let mut chosen = chosen;
+        let mut climbed = false;
+        for _ in 0..2 {
+            match higher_edge(&context, ws.accumulator, &chosen, sky_brighter, min_votes) {
+                Some(upper) => {
+                    chosen = Scored {
+                        continues_track: self
+                            .track
+                            .is_some_and(|t| self.in_gate(&t.line, &upper.horizon)),
+                        ..upper
+                    };
+                    climbed = true;
+                }
+                None => break,
+            }
+        }
+
         // Confidence: the line must split the frame into clearly different halves, be drawn
         // by edges along most of its length, and have no comparable rival elsewhere.
+        // A ground edge the search climbed over is below the horizon by construction, not a
+        // rival to it.
+        let climbed_over = |s: &Scored| {
+            climbed && libm::fabsf(wrap_angle(s.line.angle - chosen.line.angle)) < 3.0 * PI / 180.0
+        };
         let rival = scored
             .iter()
             .flatten()
-            .filter(|s| !same_line(s.line, chosen.line, rho.step))
+            .filter(|s| !same_line(s.line, chosen.line, rho.step) && !climbed_over(s))
             .map(|s| s.score)
             .fold(0.0f32, f32::max);
         let explained_term = ((chosen.explained - 0.15) / 0.45).clamp(0.0, 1.0);
@@ -487,6 +542,31 @@ impl HorizonDetector {
         if jumped {
             confidence *= 0.7;
         }
+
+        // 8: the line's place in the transition, at full resolution (see `profile`). The
+        // search reaches past the coarse line's smoothing on the sky side.
+        let search_px = (3 * geo.scale + 3) as f32;
+        let (placed, placement) =
+            profile::place(frame, &camera, chosen.horizon, search_px, sky_brighter);
+
+        // Honesty about what the frame can show. Clipped pixels (the sun and its bloom in
+        // view, an over-exposed sky) hide where the sky ends: the edge found may be where the
+        // clipping ends, and the horizon may be anywhere under it. A line with no clear edge
+        // at full resolution is a guess from the binned image.
+        let clipped = samples
+            .iter()
+            .filter(|s| s.luma >= hough::SATURATED)
+            .count();
+        let clipped_share = clipped as f32 / samples.len().max(1) as f32;
+        confidence *= (1.0 - CLIPPED_FRAME_WEIGHT * clipped_share).clamp(0.0, 1.0);
+        confidence *= (1.0 - CLIPPED_SKY_WEIGHT * placement.clipped_sky).clamp(0.0, 1.0);
+        if placement.significance < profile::MIN_SIGNIFICANCE {
+            confidence *= 0.5;
+        }
+        let chosen = Scored {
+            horizon: placed,
+            ..chosen
+        };
 
         let misses = if chosen.continues_track || self.track.is_none() {
             0
@@ -547,6 +627,107 @@ impl HorizonDetector {
         roll_difference <= self.config.gate_roll_deg * PI / 180.0
             && libm::fabsf(candidate.offset - tracked.offset) <= self.config.gate_offset
     }
+}
+
+/// What scoring a line needs besides the line.
+struct LineContext<'a> {
+    camera: &'a Camera,
+    geo: Working,
+    rho: RhoAxis,
+    edges: &'a [EdgePoint],
+    samples: &'a [Sample],
+    max_radius2: f32,
+    bands: &'a [f32],
+    max_angle_difference: f32,
+}
+
+/// Farthest the search for a higher edge reaches above the chosen line (normalised units,
+/// tan 15°): ground edges that out-score the horizon lie within a few degrees of it.
+const HIGHER_EDGE_REACH: f32 = 0.27;
+/// Ground between two edges is this much more textured than the sky above the upper one.
+const GROUND_TEXTURE_RATIO: f32 = 1.5;
+
+/// The edge above `chosen` (same direction within 2°, same polarity) that is the real
+/// horizon, if there is one: it must separate the frame at least half as well, be drawn along
+/// a third of its length, and have textured ground between it and `chosen` under smooth sky.
+fn higher_edge(
+    c: &LineContext<'_>,
+    accumulator: &[u16],
+    chosen: &Scored,
+    sky_brighter: bool,
+    min_votes: u16,
+) -> Option<Scored> {
+    let bins = c.rho.bins();
+    let centre = hough::angle_bin(chosen.line.angle);
+    let start = c.rho.index(chosen.line.rho)? as isize;
+    let sign: isize = if sky_brighter { 1 } else { -1 };
+    let reach = (HIGHER_EDGE_REACH / c.rho.step) as isize;
+    let mut best = Peak::default();
+    for da in 0..5 {
+        let a = (centre + ANGLE_BINS + da - 2) % ANGLE_BINS;
+        for k in 4..=reach {
+            let r = start + sign * k;
+            if r < 0 || r >= bins as isize {
+                break;
+            }
+            let votes = accumulator.get(a * bins + r as usize).copied().unwrap_or(0);
+            if votes > best.votes {
+                best = Peak {
+                    angle: a,
+                    rho: r as usize,
+                    votes,
+                };
+            }
+        }
+    }
+    if best.votes < min_votes {
+        return None;
+    }
+    let start_line = Line {
+        angle: best.angle as f32 * hough::ANGLE_STEP,
+        rho: c.rho.value(best.rho),
+    };
+    let (line, inliers) = hough::refine(c.edges, start_line, c.bands, c.max_angle_difference)?;
+    let sky_ward = if sky_brighter { 1.0 } else { -1.0 };
+    let parallel = libm::fabsf(wrap_angle(line.angle - chosen.line.angle)) < 3.0 * PI / 180.0;
+    if !parallel || sky_ward * (line.rho - chosen.line.rho) < 2.0 * c.rho.step {
+        return None;
+    }
+    let expected = expected_edge_pixels(c.camera, c.geo, line, c.rho, c.max_radius2);
+    if expected < 4.0 {
+        return None;
+    }
+    let coverage = (inliers as f32 / expected).min(1.0);
+    let separation = hough::separation(c.samples, line, 2.0 * c.rho.step);
+    if coverage < 0.33 || separation.explained < 0.5 * chosen.explained {
+        return None;
+    }
+    let texture = hough::band_textures(c.samples, chosen.line, line, sky_ward, c.rho.step);
+    if texture.between_count < 8
+        || texture.above_count < 8
+        || texture.between < GROUND_TEXTURE_RATIO * texture.above + 0.5
+    {
+        return None;
+    }
+    let horizon = if sky_brighter {
+        HorizonLine {
+            camera_roll_rad: wrap_angle(line.angle + PI),
+            offset: -line.rho,
+        }
+    } else {
+        HorizonLine {
+            camera_roll_rad: wrap_angle(line.angle),
+            offset: line.rho,
+        }
+    };
+    Some(Scored {
+        line,
+        horizon,
+        explained: separation.explained,
+        coverage,
+        score: separation.explained * coverage,
+        continues_track: false,
+    })
 }
 
 fn best_of(scored: &[Option<Scored>], keep: impl Fn(&Scored) -> bool) -> Option<Scored> {

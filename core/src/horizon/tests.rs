@@ -112,7 +112,7 @@ fn level_horizon_through_the_centre() {
     let grey = to_grey(&render(&camera, 0.0, 0.0, SKY, GROUND));
     let h = detect_once(camera, Pixels::Grey(&grey));
     assert_attitude(h, 0.0, 0.0, 0.3);
-    assert!(h.expect("found").confidence > 0.8);
+    assert!(h.expect("found").confidence > 0.8, "{h:?}");
 }
 
 #[test]
@@ -345,4 +345,323 @@ fn tracking_keeps_the_sky_side_when_brightness_flips() {
         2.0,
         0.5,
     );
+}
+
+// ---- The failure modes of issue 17: each frame must give the angle within 2° or say
+// honestly that it has no horizon (no answer, or a confidence under the estimator's gate).
+
+/// The confidence from which the estimator takes a horizon measurement.
+fn gate() -> f32 {
+    crate::estimation::ekf::EkfConfig::default().horizon_min_confidence as f32
+}
+
+/// Deterministic noise in [0, 1) from integers.
+fn hash(a: i64, b: i64, seed: u64) -> f32 {
+    let mut h = seed
+        ^ (a as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
+        ^ (b as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F);
+    h = (h ^ (h >> 31)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    h ^= h >> 29;
+    (h >> 40) as f32 / (1u64 << 24) as f32
+}
+
+/// A grey frame from a luma function of (pixel u, pixel v, signed distance d below the true
+/// horizon in normalised units), area-sampled 4×4 over each pixel (centres at the integers).
+fn render_grey(
+    camera: &Camera,
+    roll: f32,
+    pitch: f32,
+    luma: impl Fn(f32, f32, f32) -> f32,
+) -> Vec<u8> {
+    let (s, c, o) = (libm::sinf(roll), libm::cosf(roll), libm::tanf(pitch));
+    let (w, h) = (camera.width as usize, camera.height as usize);
+    let mut out = vec![0u8; w * h];
+    for v in 0..h {
+        for u in 0..w {
+            let mut sum = 0.0;
+            for sy in 0..4 {
+                for sx in 0..4 {
+                    let pu = u as f32 - 0.375 + 0.25 * sx as f32;
+                    let pv = v as f32 - 0.375 + 0.25 * sy as f32;
+                    let (x, y) = camera.undistort_pixel(pu, pv).expect("inside the model");
+                    sum += luma(pu, pv, s * x + c * y - o);
+                }
+            }
+            out[v * w + u] = (sum / 16.0).round().clamp(0.0, 255.0) as u8;
+        }
+    }
+    out
+}
+
+/// Adds approximately Gaussian noise of standard deviation `sigma`.
+fn add_noise(pixels: &mut [u8], sigma: f32, seed: u64) {
+    for (i, p) in pixels.iter_mut().enumerate() {
+        let n: f32 = (0..4).map(|k| hash(i as i64, k, seed)).sum::<f32>() - 2.0;
+        *p = (f32::from(*p) + n * 1.732 * sigma)
+            .round()
+            .clamp(0.0, 255.0) as u8;
+    }
+}
+
+/// Within `tolerance_deg` of the truth, or honestly no horizon. Returns whether it answered.
+fn assert_right_or_honest(h: Option<Horizon>, roll_deg: f32, pitch_deg: f32, what: &str) -> bool {
+    let Some(h) = h else {
+        return false;
+    };
+    let roll_error = wrap_angle(h.roll_rad - roll_deg * DEG) / DEG;
+    let pitch_error = (h.pitch_rad - pitch_deg * DEG) / DEG;
+    let right = roll_error.abs() <= 2.0 && pitch_error.abs() <= 2.0;
+    assert!(
+        right || h.confidence < gate(),
+        "{what}: roll {roll_deg} pitch {pitch_deg} read as roll {:.2} pitch {:.2} with confidence {:.2} (gate {})",
+        h.roll_rad / DEG,
+        h.pitch_rad / DEG,
+        h.confidence,
+        gate()
+    );
+    right
+}
+
+/// Haze seen from altitude: the ground fades into an airlight a little darker than the
+/// sky, so the horizon is a small step followed by a long ramp (extinction `k` = altitude /
+/// haze length, the ramp's steepest part lies at a depression of k/2).
+fn hazy(sky: f32, airlight: f32, ground: f32, k: f32) -> impl Fn(f32, f32, f32) -> f32 {
+    move |_, _, d| {
+        if d <= 0.0 {
+            // The sky brightens towards the horizon.
+            sky - 25.0 * (1.0 - libm::expf(d / 0.2))
+        } else {
+            let t = libm::expf(-k / d);
+            airlight * (1.0 - t) + ground * t
+        }
+    }
+}
+
+#[test]
+fn haze_ramp_puts_no_bias_on_the_pitch() {
+    // The binned Sobel's edge sat in the ramp: +1.2° of pitch at k = 0.035 (the ramp's
+    // steepest part 1° below the horizon), +0.3 to +0.7° at k = 0.02, with the gradient
+    // maximum of the binned image; `airlight`: the ground at the horizon, under the sky's 215.
+    for (w, h, k, airlight) in [
+        (320, 240, 0.035, 200.0),
+        (320, 240, 0.035, 185.0),
+        (320, 240, 0.02, 185.0),
+        (480, 480, 0.035, 200.0),
+        (480, 480, 0.02, 200.0),
+        (640, 480, 0.035, 200.0),
+        (640, 480, 0.02, 185.0),
+        (640, 480, 0.12, 200.0),
+    ] {
+        let camera = Camera::ideal(w, h, 60.0 * DEG);
+        let mut pitch_errors = Vec::new();
+        for (roll, pitch) in [
+            (0.0, 0.0),
+            (12.0, 3.0),
+            (-20.0, -4.0),
+            (30.0, 6.0),
+            (-6.0, 1.5),
+        ] {
+            let grey = render_grey(
+                &camera,
+                roll * DEG,
+                pitch * DEG,
+                hazy(215.0, airlight, 70.0, k),
+            );
+            let found = detect_once(camera, Pixels::Grey(&grey)).expect("a horizon");
+            let roll_error = wrap_angle(found.roll_rad - roll * DEG) / DEG;
+            let pitch_error = (found.pitch_rad - pitch * DEG) / DEG;
+            assert!(
+                roll_error.abs() < 0.2,
+                "{w}x{h} k {k} roll {roll}: error {roll_error:.3}°"
+            );
+            assert!(
+                pitch_error.abs() < 0.2,
+                "{w}x{h} k {k} pitch {pitch}: error {pitch_error:.3}°"
+            );
+            pitch_errors.push(pitch_error);
+        }
+        let mean = pitch_errors.iter().sum::<f32>() / pitch_errors.len() as f32;
+        assert!(
+            mean.abs() < 0.1,
+            "{w}x{h} k {k}: mean pitch error {mean:.3}°"
+        );
+    }
+}
+
+#[test]
+fn no_pitch_bias_on_a_sharp_horizon() {
+    // Pixel centres at the integers, as `Camera::ideal` and the renderers have them: a
+    // half-pixel slip anywhere would show here as ~0.1° at 320 px.
+    let camera = camera_320();
+    let mut sum = 0.0;
+    let attitudes = [
+        (0.0, 0.0),
+        (3.0, 0.7),
+        (-8.0, -2.3),
+        (15.0, 4.1),
+        (-25.0, 1.9),
+        (40.0, -3.3),
+    ];
+    for (roll, pitch) in attitudes {
+        let grey = to_grey(&render(&camera, roll * DEG, pitch * DEG, SKY, GROUND));
+        let h = detect_once(camera, Pixels::Grey(&grey)).expect("a horizon");
+        let error = (h.pitch_rad - pitch * DEG) / DEG;
+        assert!(
+            error.abs() < 0.08,
+            "roll {roll} pitch {pitch}: pitch error {error:.3}°"
+        );
+        sum += error;
+    }
+    let mean = sum / attitudes.len() as f32;
+    assert!(mean.abs() < 0.03, "mean pitch error {mean:.3}°");
+}
+
+#[test]
+fn ground_edge_stronger_than_the_horizon() {
+    // A faint horizon (sky 205 over hazy ground 172) and, 7° lower, a far stronger edge (the
+    // hazy band over dark fields): the Hough maximum is the ground edge.
+    let camera = camera_320();
+    let below = libm::tanf(7.0 * DEG);
+    for (roll, pitch) in [(0.0, 0.0), (10.0, -3.0), (-15.0, 4.0)] {
+        let scene = |u: f32, v: f32, d: f32| {
+            let texture = 24.0 * (hash((u / 5.0) as i64, (v / 3.0) as i64, 7) - 0.5);
+            if d <= 0.0 {
+                205.0
+            } else if d < below {
+                172.0 + 0.6 * texture
+            } else {
+                70.0 + texture
+            }
+        };
+        let grey = render_grey(&camera, roll * DEG, pitch * DEG, scene);
+        let h = detect_once(camera, Pixels::Grey(&grey));
+        assert!(
+            assert_right_or_honest(h, roll, pitch, "ground edge"),
+            "roll {roll} pitch {pitch}: no horizon found above the ground edge: {h:?}"
+        );
+    }
+}
+
+#[test]
+fn heavy_sensor_noise() {
+    // σ = 30 on a contrast of 70: Hough on Canny edges still holds here, so must we.
+    let camera = camera_320();
+    for (i, (roll, pitch)) in [(5.0, 2.0), (-22.0, -5.0), (35.0, 7.0)]
+        .into_iter()
+        .enumerate()
+    {
+        let mut grey = render_grey(&camera, roll * DEG, pitch * DEG, |_, _, d| {
+            if d <= 0.0 { 170.0 } else { 100.0 }
+        });
+        add_noise(&mut grey, 30.0, i as u64);
+        let h = detect_once(camera, Pixels::Grey(&grey));
+        assert_attitude(h, roll, pitch, 1.0);
+    }
+}
+
+/// Sky with the sun at pixel `(su, sv)`: a clipped disc and its bloom.
+fn with_sun(
+    su: f32,
+    sv: f32,
+    radius: f32,
+    scene: impl Fn(f32, f32, f32) -> f32,
+) -> impl Fn(f32, f32, f32) -> f32 {
+    move |u, v, d| {
+        let r2 = ((u - su) * (u - su) + (v - sv) * (v - sv)) / (radius * radius);
+        scene(u, v, d) + 400.0 * libm::expf(-r2) + 60.0 * libm::expf(-0.1 * r2)
+    }
+}
+
+#[test]
+fn sun_glare_near_the_horizon() {
+    let camera = camera_320();
+    let ground = |u: f32, v: f32, d: f32| {
+        if d <= 0.0 {
+            190.0
+        } else {
+            95.0 + 30.0 * (hash((u / 6.0) as i64, (v / 4.0) as i64, 3) - 0.5)
+        }
+    };
+    let mut answered_right = 0;
+    // The sun above the horizon, from clear of it to sitting on it.
+    for (roll, pitch, su, sv, radius) in [
+        (5.0, 0.0, 100.0, 70.0, 20.0),
+        (-10.0, 2.0, 200.0, 90.0, 30.0),
+        (0.0, -3.0, 160.0, 90.0, 35.0),
+        (8.0, 1.0, 120.0, 110.0, 45.0),
+    ] {
+        let grey = render_grey(
+            &camera,
+            roll * DEG,
+            pitch * DEG,
+            with_sun(su, sv, radius, ground),
+        );
+        let h = detect_once(camera, Pixels::Grey(&grey));
+        answered_right += usize::from(assert_right_or_honest(h, roll, pitch, "glare"));
+    }
+    // Honesty alone is not enough: with most of the horizon in view, find it.
+    assert!(
+        answered_right >= 3,
+        "{answered_right} of 4 glare frames answered right"
+    );
+}
+
+#[test]
+fn sun_on_the_horizon_is_not_trusted() {
+    // The bloom clips a third of the frame across the horizon: whatever line comes out, the
+    // estimator must not take it.
+    let camera = camera_320();
+    let ground = |_: f32, _: f32, d: f32| if d <= 0.0 { 200.0 } else { 90.0 };
+    let grey = render_grey(&camera, 0.0, 0.0, with_sun(160.0, 118.0, 70.0, ground));
+    if let Some(h) = detect_once(camera, Pixels::Grey(&grey)) {
+        assert!(
+            h.confidence < gate(),
+            "confidence {} with the sun on the horizon",
+            h.confidence
+        );
+    }
+}
+
+#[test]
+fn over_and_under_exposure() {
+    let camera = camera_320();
+    let scene = hazy(215.0, 200.0, 70.0, 0.04);
+    let mut answered_right = 0;
+    // 1.2: the sky clips, the airlight below the horizon does not; 2.5: both clip and the
+    // horizon is not in the image at all (only honesty can be asked); 0.25 and 0.15: dim.
+    for (gain, roll, pitch) in [
+        (1.2, 4.0, 1.0),
+        (2.5, -12.0, -2.0),
+        (0.25, 9.0, 3.0),
+        (0.15, -3.0, 0.5),
+    ] {
+        let mut grey = render_grey(&camera, roll * DEG, pitch * DEG, |u, v, d| {
+            gain * scene(u, v, d)
+        });
+        add_noise(&mut grey, 2.0, 11);
+        let h = detect_once(camera, Pixels::Grey(&grey));
+        answered_right += usize::from(assert_right_or_honest(h, roll, pitch, "exposure"));
+    }
+    assert!(
+        answered_right >= 3,
+        "{answered_right} of 4 exposure frames answered right"
+    );
+}
+
+#[test]
+fn no_horizon_in_fog_or_out_of_the_frame() {
+    let camera = camera_320();
+    // Fog: one grey with a faint gradient and noise.
+    let mut fog = render_grey(&camera, 0.0, 0.0, |_, v, _| 150.0 + 0.05 * v);
+    add_noise(&mut fog, 4.0, 5);
+    // Pitched 60° up: sky only, with a few soft clouds.
+    let sky = render_grey(&camera, 0.0, 60.0 * DEG, |u, v, _| {
+        let cloud = hash((u / 40.0) as i64, (v / 30.0) as i64, 9);
+        180.0 + if cloud > 0.8 { 40.0 } else { 0.0 }
+    });
+    for (name, grey) in [("fog", fog), ("sky only", sky)] {
+        if let Some(h) = detect_once(camera, Pixels::Grey(&grey)) {
+            assert!(h.confidence < gate(), "{name}: confidence {}", h.confidence);
+        }
+    }
 }

@@ -10,18 +10,27 @@ pub struct Answer {
     pub confidence: Option<f32>,
 }
 
-/// Errors are absolute, in degrees, over the frames with an answer; `within_2deg` is over all
-/// frames (a frame without an answer is not within).
+/// Errors are in degrees over the frames with a visible horizon and an answer; the shares
+/// "within" are over every frame with a visible horizon (no answer = not within).
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct Accuracy {
     pub frames: usize,
+    /// Frames whose horizon can be seen (the truth says so).
+    pub visible: usize,
+    /// Visible frames with an answer.
     pub found: usize,
     pub roll_median_deg: f32,
     pub roll_p95_deg: f32,
     pub pitch_median_deg: f32,
     pub pitch_p95_deg: f32,
-    /// Share of all frames with both roll and pitch within 2°.
-    pub within_2deg: f32,
+    /// Median signed errors (measured − truth): a bias, which the absolute median hides.
+    pub roll_median_signed_deg: f32,
+    pub pitch_median_signed_deg: f32,
+    /// Shares of the visible frames with both roll and pitch within 1°, 2°, 5° (`None` when
+    /// no frame has a visible horizon).
+    pub within_1deg: Option<f32>,
+    pub within_2deg: Option<f32>,
+    pub within_5deg: Option<f32>,
     /// Frames more than 5° wrong (roll or pitch) reported with confidence above 0.5.
     pub wrong_confident: usize,
     /// Frames more than 5° wrong, any confidence.
@@ -29,21 +38,30 @@ pub struct Accuracy {
     /// Share of all frames answered with confidence above 0.5 (`None` for a detector
     /// without a confidence).
     pub confident: Option<f32>,
+    /// Share of all frames where the answer would pass the estimator's confidence gate
+    /// ([`gate`]) but is wrong: more than 2° off, or a line where no horizon can be seen. A
+    /// detector without a confidence claims every answer.
+    pub false_confident_rate: f32,
 }
 
 /// Above this a confident answer counts as a lie (the accuracy tests assert none).
 pub const CONFIDENT: f32 = 0.5;
 pub const WRONG_DEG: f32 = 5.0;
+/// An answer off by more than this is wrong for the false-confidence rate.
+pub const FALSE_DEG: f32 = 2.0;
+
+/// The confidence from which the vehicle's estimator uses a horizon measurement.
+pub fn gate() -> f32 {
+    skyframe_core::estimation::ekf::EkfConfig::default().horizon_min_confidence as f32
+}
 
 pub fn roll_error_deg(measured: f32, truth: f32) -> f32 {
-    let mut e = (measured - truth) % 360.0;
-    if e > 180.0 {
-        e -= 360.0;
-    }
-    if e < -180.0 {
-        e += 360.0;
-    }
-    e.abs()
+    signed_roll_error_deg(measured, truth).abs()
+}
+
+/// Roll error wrapped to [−180°, 180°).
+pub fn signed_roll_error_deg(measured: f32, truth: f32) -> f32 {
+    (measured - truth + 180.0).rem_euclid(360.0) - 180.0
 }
 
 fn percentile(sorted: &[f32], p: f32) -> f32 {
@@ -54,11 +72,17 @@ fn percentile(sorted: &[f32], p: f32) -> f32 {
     sorted[rank - 1]
 }
 
+fn median_of(mut v: Vec<f32>) -> f32 {
+    v.sort_by(f32::total_cmp);
+    percentile(&v, 0.5)
+}
+
 pub fn evaluate(answers: &[Answer], truths: &[Truth]) -> Accuracy {
-    let mut roll_errors = Vec::new();
-    let mut pitch_errors = Vec::new();
-    let mut within = 0;
-    let (mut wrong, mut wrong_confident) = (0, 0);
+    let gate = gate();
+    let (mut roll_errors, mut pitch_errors) = (Vec::new(), Vec::new());
+    let (mut roll_signed, mut pitch_signed) = (Vec::new(), Vec::new());
+    let (mut within1, mut within2, mut within5) = (0, 0, 0);
+    let (mut wrong, mut wrong_confident, mut false_confident) = (0, 0, 0);
     let mut confident = 0;
     let has_confidence = answers.iter().any(|a| a.confidence.is_some());
     for (a, t) in answers.iter().zip(truths) {
@@ -68,14 +92,24 @@ pub fn evaluate(answers: &[Answer], truths: &[Truth]) -> Accuracy {
         if a.confidence.is_some_and(|c| c > CONFIDENT) {
             confident += 1;
         }
-        let re = roll_error_deg(roll, t.roll_deg);
-        let pe = (pitch - t.pitch_deg).abs();
+        let claims = a.confidence.is_none_or(|c| c >= gate);
+        if !t.visible {
+            false_confident += usize::from(claims);
+            continue;
+        }
+        let rs = signed_roll_error_deg(roll, t.roll_deg);
+        let ps = pitch - t.pitch_deg;
+        let (re, pe) = (rs.abs(), ps.abs());
+        roll_signed.push(rs);
+        pitch_signed.push(ps);
         roll_errors.push(re);
         pitch_errors.push(pe);
-        if re <= 2.0 && pe <= 2.0 {
-            within += 1;
-        }
-        if re > WRONG_DEG || pe > WRONG_DEG {
+        let worst = re.max(pe);
+        within1 += usize::from(worst <= 1.0);
+        within2 += usize::from(worst <= 2.0);
+        within5 += usize::from(worst <= 5.0);
+        false_confident += usize::from(claims && worst > FALSE_DEG);
+        if worst > WRONG_DEG {
             wrong += 1;
             if a.confidence.is_some_and(|c| c > CONFIDENT) {
                 wrong_confident += 1;
@@ -85,20 +119,28 @@ pub fn evaluate(answers: &[Answer], truths: &[Truth]) -> Accuracy {
     roll_errors.sort_by(f32::total_cmp);
     pitch_errors.sort_by(f32::total_cmp);
     let frames = answers.len().min(truths.len());
+    let visible = truths.iter().take(frames).filter(|t| t.visible).count();
+    let share = |n: usize| (visible > 0).then(|| n as f32 / visible as f32);
     Accuracy {
         frames,
+        visible,
         found: roll_errors.len(),
         roll_median_deg: percentile(&roll_errors, 0.5),
         roll_p95_deg: percentile(&roll_errors, 0.95),
         pitch_median_deg: percentile(&pitch_errors, 0.5),
         pitch_p95_deg: percentile(&pitch_errors, 0.95),
-        within_2deg: if frames > 0 {
-            within as f32 / frames as f32
-        } else {
-            0.0
-        },
+        roll_median_signed_deg: median_of(roll_signed),
+        pitch_median_signed_deg: median_of(pitch_signed),
+        within_1deg: share(within1),
+        within_2deg: share(within2),
+        within_5deg: share(within5),
         wrong_confident,
         wrong,
         confident: (has_confidence && frames > 0).then(|| confident as f32 / frames as f32),
+        false_confident_rate: if frames > 0 {
+            false_confident as f32 / frames as f32
+        } else {
+            0.0
+        },
     }
 }

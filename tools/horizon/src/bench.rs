@@ -1,8 +1,8 @@
 //! `bench`: this detector against the OpenCV pipeline of `opencv_baseline.py`, on the same
 //! synthetic frames (written as PNG to a scratch directory), one thread each.
 //!
-//! Accuracy on every degradation set at 320×240, and on the mixed set at 640×480; speed as
-//! ms/frame over those same frames at each size.
+//! Accuracy on every set of both generators (`synth`, tuned on; `terrain`, held out) at each
+//! size; speed as ms/frame over those same frames at each size.
 
 use crate::Error;
 use crate::accuracy::{self, Accuracy, Answer};
@@ -10,7 +10,9 @@ use crate::camera_file::CameraFile;
 use crate::detect::Runner;
 use crate::image_io::{self, Image};
 use crate::synth::{Degradation, Renderer, Truth};
+use crate::terrain::{Class, TerrainRenderer};
 use serde::Serialize;
+use skyframe_core::horizon::Camera;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -18,16 +20,36 @@ use std::process::Command;
 pub const OPENCV_PIN: &str = "opencv-python-headless==4.10.0.84";
 const SCRIPT: &str = include_str!("../opencv_baseline.py");
 
+/// The two generators: `synth` is tuned on, `terrain` is held out and only scored.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Generator {
+    Synth,
+    Terrain,
+    Both,
+}
+
 #[derive(clap::Args, Debug)]
 pub struct BenchArgs {
     /// Print one JSON document instead of tables.
     #[arg(long)]
     pub json: bool,
-    /// Frames per degradation set.
-    #[arg(long, default_value_t = 60)]
+    /// Print the tables as Markdown (for docs/horizon.md).
+    #[arg(long)]
+    pub markdown: bool,
+    /// Frames per set.
+    #[arg(long, default_value_t = 40)]
     pub frames: usize,
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Which generator's sets: synth (tuned on), terrain (held out), or both.
+    #[arg(long, value_enum, default_value = "both")]
+    pub generator: Generator,
+    /// Frame sizes, comma-separated WIDTHxHEIGHT.
+    #[arg(long, default_value = "320x240,640x480")]
+    pub sizes: String,
+    /// Only sets whose name contains this.
+    #[arg(long)]
+    pub only: Option<String>,
     /// Only this detector (no Python needed).
     #[arg(long)]
     pub no_opencv: bool,
@@ -52,12 +74,14 @@ pub struct Run {
 
 #[derive(Debug, Serialize)]
 pub struct SetResult {
+    pub generator: &'static str,
     pub set: String,
     pub size: String,
     pub ours: Run,
     pub opencv: Option<Run>,
-    /// More frames within 2° than OpenCV, or as many with a smaller worst p95.
-    pub ours_more_accurate: Option<bool>,
+    /// At least OpenCV's share within 2° (or no visible horizon to score), and no more
+    /// false confidence.
+    pub ours_at_least_opencv: Option<bool>,
 }
 
 #[derive(Debug, Serialize)]
@@ -82,20 +106,26 @@ pub struct Report {
     pub seed: u64,
     pub threads: usize,
     pub release_build: bool,
+    /// The estimator's confidence gate the false-confidence rate is counted at.
+    pub confidence_gate: f32,
+    pub tuned_on: &'static str,
+    pub held_out: &'static str,
     pub accuracy: Vec<SetResult>,
     pub speed: Vec<Speed>,
-    pub more_accurate_on_every_set: Option<bool>,
+    pub at_least_opencv_on_every_set: Option<bool>,
     pub at_least_2x_faster: Option<bool>,
 }
 
-/// A synthesised set: frames and truth, rendered once.
+/// A rendered set: frames and truth, rendered once.
 pub struct SynthSet {
-    pub degradation: Degradation,
-    pub renderer: Renderer,
+    pub generator: &'static str,
+    pub name: String,
+    pub camera: Camera,
     pub frames: Vec<Image>,
     pub truths: Vec<Truth>,
 }
 
+/// A set of the tuning generator ([`crate::synth`]).
 pub fn synthesise(
     degradation: Degradation,
     width: usize,
@@ -106,8 +136,28 @@ pub fn synthesise(
     let renderer = Renderer::new(degradation, width, height, seed);
     let (frames, truths) = (0..frames).map(|i| renderer.render(i)).unzip();
     SynthSet {
-        degradation,
-        renderer,
+        generator: "synth",
+        name: degradation.name().to_string(),
+        camera: renderer.camera,
+        frames,
+        truths,
+    }
+}
+
+/// A set of the held-out generator ([`crate::terrain`]).
+pub fn terrain_set(
+    class: Class,
+    width: usize,
+    height: usize,
+    frames: usize,
+    seed: u64,
+) -> SynthSet {
+    let renderer = TerrainRenderer::new(class, width, height, seed);
+    let (frames, truths) = (0..frames).map(|i| renderer.render(i)).unzip();
+    SynthSet {
+        generator: "terrain",
+        name: class.name().to_string(),
+        camera: renderer.camera,
         frames,
         truths,
     }
@@ -115,7 +165,7 @@ pub fn synthesise(
 
 /// Runs this detector over a set (one detector, tracking across frames).
 pub fn run_ours(set: &SynthSet) -> Result<(Vec<Answer>, Vec<f64>), Error> {
-    let mut runner = Runner::new(set.renderer.camera);
+    let mut runner = Runner::new(set.camera);
     let mut answers = Vec::with_capacity(set.frames.len());
     let mut ms = Vec::with_capacity(set.frames.len());
     for image in &set.frames {
@@ -153,10 +203,34 @@ fn run_of(answers: &[Answer], truths: &[Truth], ms: &[f64]) -> Run {
     }
 }
 
-fn more_accurate(ours: &Accuracy, theirs: &Accuracy) -> bool {
-    let worst = |a: &Accuracy| a.roll_p95_deg.max(a.pitch_p95_deg);
-    ours.within_2deg > theirs.within_2deg
-        || (ours.within_2deg == theirs.within_2deg && worst(ours) < worst(theirs))
+fn at_least(ours: &Accuracy, theirs: &Accuracy) -> bool {
+    let within = match (ours.within_2deg, theirs.within_2deg) {
+        (Some(a), Some(b)) => a >= b,
+        _ => true,
+    };
+    within && ours.false_confident_rate <= theirs.false_confident_rate
+}
+
+/// Parses `320x240,640x480`.
+fn parse_sizes(text: &str) -> Result<Vec<(usize, usize)>, Error> {
+    text.split(',')
+        .map(|item| {
+            let bad = || {
+                Error::input(format!(
+                    "--sizes: {item:?} is not WIDTHxHEIGHT (32 to 4096 each)"
+                ))
+            };
+            let (w, h) = item.trim().split_once(['x', 'X']).ok_or_else(bad)?;
+            let (w, h) = (
+                w.parse::<usize>().map_err(|_| bad())?,
+                h.parse::<usize>().map_err(|_| bad())?,
+            );
+            if !(32..=4096).contains(&w) || !(32..=4096).contains(&h) {
+                return Err(bad());
+            }
+            Ok((w, h))
+        })
+        .collect()
 }
 
 /// Checks that the baseline can run, installing the pinned OpenCV if asked. Returns its version.
@@ -203,12 +277,12 @@ fn opencv_version(args: &BenchArgs) -> Result<String, Error> {
 fn write_set(dir: &Path, set: &SynthSet) -> Result<(), Error> {
     std::fs::create_dir_all(dir).map_err(|e| Error::failure(format!("{}: {e}", dir.display())))?;
     let camera_path = dir.join("camera.toml");
-    std::fs::write(&camera_path, CameraFile::to_toml(&set.renderer.camera))
+    std::fs::write(&camera_path, CameraFile::to_toml(&set.camera))
         .map_err(|e| Error::failure(format!("{}: {e}", camera_path.display())))?;
-    let mut truth = String::from("frame,roll_deg,pitch_deg\n");
+    let mut truth = String::from(crate::synth::TRUTH_HEADER);
     for (i, (image, t)) in set.frames.iter().zip(&set.truths).enumerate() {
         image_io::write_png(&dir.join(format!("frame_{i:06}.png")), image)?;
-        truth.push_str(&format!("{i},{:.4},{:.4}\n", t.roll_deg, t.pitch_deg));
+        truth.push_str(&crate::synth::truth_line(i, t));
     }
     let truth_path = dir.join("truth.csv");
     std::fs::write(&truth_path, truth)
@@ -262,7 +336,7 @@ pub fn run(args: &BenchArgs) -> Result<(), Error> {
             serde_json::to_string_pretty(&report).map_err(|e| Error::failure(e.to_string()))?;
         println!("{text}");
     } else {
-        print_tables(&report);
+        print_tables(&report, args.markdown);
     }
     Ok(())
 }
@@ -272,18 +346,49 @@ fn bench_in(
     scratch: &Path,
     opencv_version: Option<String>,
 ) -> Result<Report, Error> {
-    let mut plan: Vec<(Degradation, usize, usize)> =
-        Degradation::SETS.iter().map(|&d| (d, 320, 240)).collect();
-    plan.push((Degradation::Mixed, 640, 480));
+    let sizes = parse_sizes(&args.sizes)?;
+    #[derive(Clone, Copy)]
+    enum Which {
+        Synth(Degradation),
+        Terrain(Class),
+    }
+    let mut plan: Vec<(Which, usize, usize)> = Vec::new();
+    for &(w, h) in &sizes {
+        if args.generator != Generator::Terrain {
+            plan.extend(
+                Degradation::SETS
+                    .iter()
+                    .chain([&Degradation::Mixed])
+                    .map(|&d| (Which::Synth(d), w, h)),
+            );
+        }
+        if args.generator != Generator::Synth {
+            plan.extend(Class::ALL.iter().map(|&c| (Which::Terrain(c), w, h)));
+        }
+    }
+    let wanted = |name: &str| args.only.as_deref().is_none_or(|o| name.contains(o));
     let mut sets = Vec::new();
-    for &(degradation, w, h) in &plan {
-        eprintln!("rendering {} at {w}×{h}", degradation.name());
-        let set = synthesise(degradation, w, h, args.frames, args.seed);
-        let dir = scratch.join(format!("{}-{w}x{h}", degradation.name()));
+    for &(which, w, h) in &plan {
+        let name = match which {
+            Which::Synth(d) => d.name(),
+            Which::Terrain(c) => c.name(),
+        };
+        if !wanted(name) {
+            continue;
+        }
+        eprintln!("rendering {name} at {w}×{h}");
+        let set = match which {
+            Which::Synth(d) => synthesise(d, w, h, args.frames, args.seed),
+            Which::Terrain(c) => terrain_set(c, w, h, args.frames, args.seed),
+        };
+        let dir = scratch.join(format!("{}-{}-{w}x{h}", set.generator, set.name));
         if opencv_version.is_some() {
             write_set(&dir, &set)?;
         }
         sets.push((set, dir, format!("{w}x{h}")));
+    }
+    if sets.is_empty() {
+        return Err(Error::input("no set matches --only"));
     }
     let mut ours = Vec::new();
     for (set, _, _) in &sets {
@@ -314,17 +419,20 @@ fn bench_in(
         let ours_run = run_of(answers, &set.truths, ms);
         let opencv_run = other.as_ref().map(|(a, m)| run_of(a, &set.truths, m));
         accuracy.push(SetResult {
-            set: set.degradation.name().to_string(),
+            generator: set.generator,
+            set: set.name.clone(),
             size: size.clone(),
-            ours_more_accurate: opencv_run
+            ours_at_least_opencv: opencv_run
                 .as_ref()
-                .map(|o| more_accurate(&ours_run.accuracy, &o.accuracy)),
+                .map(|o| at_least(&ours_run.accuracy, &o.accuracy)),
             ours: ours_run,
             opencv: opencv_run,
         });
     }
     let mut speed = Vec::new();
-    for size in ["320x240", "640x480"] {
+    for &(w, h) in &sizes {
+        let size = format!("{w}x{h}");
+        let size = size.as_str();
         let pick = |i: usize| sets.get(i).is_some_and(|(_, _, s)| s == size);
         let ours_ms: Vec<f64> = ours
             .iter()
@@ -351,9 +459,11 @@ fn bench_in(
             speedup_median: has_opencv.then(|| median(&theirs_ms) / median(&ours_ms)),
         });
     }
-    let more_accurate_on_every_set = opencv_version
-        .as_ref()
-        .map(|_| accuracy.iter().all(|a| a.ours_more_accurate == Some(true)));
+    let at_least_opencv_on_every_set = opencv_version.as_ref().map(|_| {
+        accuracy
+            .iter()
+            .all(|a| a.ours_at_least_opencv == Some(true))
+    });
     let at_least_2x_faster = opencv_version.as_ref().map(|_| {
         speed
             .iter()
@@ -365,64 +475,101 @@ fn bench_in(
         seed: args.seed,
         threads: 1,
         release_build: !cfg!(debug_assertions),
+        confidence_gate: accuracy::gate(),
+        tuned_on: "synth",
+        held_out: "terrain",
         accuracy,
         speed,
-        more_accurate_on_every_set,
+        at_least_opencv_on_every_set,
         at_least_2x_faster,
     })
 }
 
-fn print_tables(report: &Report) {
-    println!(
-        "{:<20} {:>8} | {:>7} {:>6} {:>6} {:>6} {:>6} {:>5} {:>5} | {:>7} {:>6} {:>6} {:>6} {:>6}",
+fn opt(v: Option<f32>) -> String {
+    v.map_or_else(|| "-".to_string(), |x| format!("{x:.2}"))
+}
+
+fn print_tables(report: &Report, markdown: bool) {
+    let header = [
+        "gen",
         "set",
         "size",
-        "within2",
-        "r_med",
-        "r_p95",
-        "p_med",
-        "p_p95",
-        "conf",
-        "lies",
+        "w1",
+        "w2",
+        "w5",
+        "roll_sgn",
+        "pitch_sgn",
+        "roll_med",
+        "pitch_med",
+        "false_conf",
+        "ms",
+        "cv_w1",
         "cv_w2",
-        "r_med",
-        "r_p95",
-        "p_med",
-        "p_p95"
-    );
+        "cv_w5",
+        "cv_roll_sgn",
+        "cv_pitch_sgn",
+        "cv_false",
+        "cv_ms",
+    ];
+    let row = |cells: &[String]| {
+        if markdown {
+            println!("| {} |", cells.join(" | "));
+        } else {
+            let widths = [8, 19, 8, 5, 5, 5, 8, 9, 8, 9, 10, 6, 5, 5, 5, 11, 12, 8, 6];
+            let line: Vec<String> = cells
+                .iter()
+                .zip(widths)
+                .map(|(c, w)| format!("{c:>w$}"))
+                .collect();
+            println!("{}", line.join(" "));
+        }
+    };
+    row(&header.map(String::from));
+    if markdown {
+        println!("|{}", "---|".repeat(header.len()));
+    }
     for s in &report.accuracy {
         let a = &s.ours.accuracy;
-        print!(
-            "{:<20} {:>8} | {:>7.2} {:>6.2} {:>6.2} {:>6.2} {:>6.2} {:>5.2} {:>5} |",
-            s.set,
-            s.size,
-            a.within_2deg,
-            a.roll_median_deg,
-            a.roll_p95_deg,
-            a.pitch_median_deg,
-            a.pitch_p95_deg,
-            a.confident.unwrap_or(0.0),
-            a.wrong_confident
-        );
+        let mut cells = vec![
+            s.generator.to_string(),
+            s.set.clone(),
+            s.size.clone(),
+            opt(a.within_1deg),
+            opt(a.within_2deg),
+            opt(a.within_5deg),
+            format!("{:+.2}", a.roll_median_signed_deg),
+            format!("{:+.2}", a.pitch_median_signed_deg),
+            format!("{:.2}", a.roll_median_deg),
+            format!("{:.2}", a.pitch_median_deg),
+            format!("{:.2}", a.false_confident_rate),
+            format!("{:.2}", s.ours.ms_median),
+        ];
         match &s.opencv {
             Some(o) => {
                 let b = &o.accuracy;
-                println!(
-                    " {:>7.2} {:>6.2} {:>6.2} {:>6.2} {:>6.2}",
-                    b.within_2deg,
-                    b.roll_median_deg,
-                    b.roll_p95_deg,
-                    b.pitch_median_deg,
-                    b.pitch_p95_deg
-                );
+                cells.extend([
+                    opt(b.within_1deg),
+                    opt(b.within_2deg),
+                    opt(b.within_5deg),
+                    format!("{:+.2}", b.roll_median_signed_deg),
+                    format!("{:+.2}", b.pitch_median_signed_deg),
+                    format!("{:.2}", b.false_confident_rate),
+                    format!("{:.2}", o.ms_median),
+                ]);
             }
-            None => println!(),
+            None => cells.extend((0..7).map(|_| "-".to_string())),
         }
+        row(&cells);
     }
+    println!();
     println!(
-        "within2: share of frames with roll and pitch within 2°; r/p med, p95: errors (°) over \
-         the frames answered; conf: share answered with confidence > 0.5; lies: frames > 5° \
-         wrong with confidence > 0.5; cv_*: the OpenCV pipeline"
+        "w1/w2/w5: share of the frames with a visible horizon answered with roll and pitch both \
+         within 1°/2°/5°; *_sgn: median signed error (°, measured − truth); *_med: median \
+         absolute error; false_conf: share of all frames answered with confidence ≥ {:.2} (the \
+         estimator's gate) more than 2° wrong or where no horizon can be seen (OpenCV has no \
+         confidence: every answer counts); ms: median ms/frame; cv_*: the OpenCV pipeline. \
+         Tuned on synth; terrain is held out.",
+        report.confidence_gate
     );
     for s in &report.speed {
         match (s.opencv_ms_mean, s.opencv_ms_median, s.speedup_median) {

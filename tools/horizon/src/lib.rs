@@ -8,6 +8,7 @@ pub mod detect;
 pub mod image_io;
 pub mod send;
 pub mod synth;
+pub mod terrain;
 
 /// A failure the tool reports in one line. `Input` (exit 2): the input, a file or an argument
 /// is wrong; `Failure` (exit 1): something else went wrong (an external program, a write).

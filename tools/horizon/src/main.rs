@@ -5,7 +5,8 @@ use skyframe_horizon::camera_file::{self, CameraFile};
 use skyframe_horizon::detect::{self, CSV_HEADER, Runner, Source};
 use skyframe_horizon::image_io::{self, Y4mWriter};
 use skyframe_horizon::send::{SendArgs, Sender};
-use skyframe_horizon::synth::{Degradation, Renderer};
+use skyframe_horizon::synth::{Degradation, Renderer, TRUTH_HEADER, truth_line};
+use skyframe_horizon::terrain::{Class, TerrainRenderer};
 use skyframe_horizon::{Error, bench};
 use std::io::Write;
 use std::path::PathBuf;
@@ -75,6 +76,10 @@ enum Command {
         /// png/pgm: one file per frame (`frame_000000.png`); y4m: one `frames.y4m` stream.
         #[arg(long, value_enum, default_value = "png")]
         format: SynthFormat,
+        /// Render with the held-out generator (`terrain`) instead, this class of it
+        /// (--degradation is then ignored).
+        #[arg(long, value_enum)]
+        terrain: Option<Class>,
     },
     /// Speed and accuracy of this detector and of an OpenCV pipeline on the same synthetic
     /// frames (needs `python3` with opencv-python-headless 4.x unless --no-opencv).
@@ -107,7 +112,17 @@ fn main() {
             height,
             seed,
             format,
-        } => run_synth(out, degradation, frames, width, height, seed, format),
+            terrain,
+        } => run_synth(
+            out,
+            degradation,
+            terrain,
+            frames,
+            width,
+            height,
+            seed,
+            format,
+        ),
         Command::Bench(args) => bench::run(&args),
     };
     if let Err(e) = result {
@@ -169,9 +184,11 @@ fn run_detect(
     out.flush().map_err(write_error)
 }
 
+#[allow(clippy::too_many_arguments)]
 fn run_synth(
     out: PathBuf,
     degradation: Degradation,
+    terrain: Option<Class>,
     frames: usize,
     width: usize,
     height: usize,
@@ -187,11 +204,21 @@ fn run_synth(
         Error::input(format!("{}: {e}", path.display()))
     };
     std::fs::create_dir_all(&out).map_err(|e| io(&out, e))?;
-    let renderer = Renderer::new(degradation, width, height, seed);
+    enum Either {
+        Synth(Renderer),
+        Terrain(TerrainRenderer),
+    }
+    let renderer = match terrain {
+        Some(class) => Either::Terrain(TerrainRenderer::new(class, width, height, seed)),
+        None => Either::Synth(Renderer::new(degradation, width, height, seed)),
+    };
+    let camera = match &renderer {
+        Either::Synth(r) => r.camera,
+        Either::Terrain(r) => r.camera,
+    };
     let camera_path = out.join("camera.toml");
-    std::fs::write(&camera_path, CameraFile::to_toml(&renderer.camera))
-        .map_err(|e| io(&camera_path, e))?;
-    let mut truth = String::from("frame,roll_deg,pitch_deg\n");
+    std::fs::write(&camera_path, CameraFile::to_toml(&camera)).map_err(|e| io(&camera_path, e))?;
+    let mut truth = String::from(TRUTH_HEADER);
     let y4m_path = out.join("frames.y4m");
     let mut y4m = match format {
         SynthFormat::Y4m => {
@@ -204,8 +231,11 @@ fn run_synth(
         _ => None,
     };
     for index in 0..frames {
-        let (image, t) = renderer.render(index);
-        truth.push_str(&format!("{index},{:.4},{:.4}\n", t.roll_deg, t.pitch_deg));
+        let (image, t) = match &renderer {
+            Either::Synth(r) => r.render(index),
+            Either::Terrain(r) => r.render(index),
+        };
+        truth.push_str(&truth_line(index, &t));
         match (&mut y4m, format) {
             (Some(w), _) => w.write(&image).map_err(|e| io(&y4m_path, e))?,
             (None, SynthFormat::Pgm) => {

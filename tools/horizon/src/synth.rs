@@ -34,12 +34,15 @@ pub enum Degradation {
     Clouds,
     /// A wide-angle lens with strong barrel distortion (Fig. 6-9); the camera file says so.
     Distortion,
+    /// Thick haze seen from higher up: the horizon is a small step from the sky to an
+    /// airlight nearly as bright, then a long ramp down to the ground's own colour.
+    Haze,
     /// All of the above at once, milder each.
     Mixed,
 }
 
 impl Degradation {
-    pub const SETS: [Degradation; 10] = [
+    pub const SETS: [Degradation; 11] = [
         Degradation::Clean,
         Degradation::SensorNoise,
         Degradation::TransmissionNoise,
@@ -50,6 +53,7 @@ impl Degradation {
         Degradation::Roads,
         Degradation::Clouds,
         Degradation::Distortion,
+        Degradation::Haze,
     ];
 
     pub fn name(self) -> &'static str {
@@ -64,6 +68,7 @@ impl Degradation {
             Degradation::Roads => "roads",
             Degradation::Clouds => "clouds",
             Degradation::Distortion => "distortion",
+            Degradation::Haze => "haze",
             Degradation::Mixed => "mixed",
         }
     }
@@ -148,6 +153,22 @@ fn fbm(seed: u64, x: f32, y: f32, octaves: u32) -> f32 {
 pub struct Truth {
     pub roll_deg: f32,
     pub pitch_deg: f32,
+    /// Whether the horizon can be seen at all (out of the frame, fogged or clipped away:
+    /// no). A frame without one is scored only on honesty.
+    pub visible: bool,
+}
+
+/// Header of `truth.csv`; `visible` is 1 when the horizon can be seen in the frame.
+pub const TRUTH_HEADER: &str = "frame,roll_deg,pitch_deg,visible\n";
+
+/// One line of `truth.csv`.
+pub fn truth_line(frame: usize, t: &Truth) -> String {
+    format!(
+        "{frame},{:.4},{:.4},{}\n",
+        t.roll_deg,
+        t.pitch_deg,
+        u8::from(t.visible)
+    )
 }
 
 /// A flight-like trajectory: banked turns with faster wobble, pitch changes of a few degrees,
@@ -165,6 +186,7 @@ pub fn trajectory(frame: usize, seed: u64) -> (Truth, f32) {
         Truth {
             roll_deg: roll,
             pitch_deg: pitch,
+            visible: true,
         },
         heading,
     )
@@ -258,6 +280,14 @@ impl Renderer {
             0.3
         };
         let world = self.seed;
+        let haze = if self.degradation == Degradation::Haze {
+            Haze {
+                distance_m: 500.0,
+                colour: [182.0, 195.0, 212.0],
+            }
+        } else {
+            Haze::NORMAL
+        };
         let shade = |x: f32, y: f32| -> [f32; 3] {
             if x.is_nan() {
                 return [0.0; 3];
@@ -272,7 +302,7 @@ impl Renderer {
             if wd > 0.0 {
                 let t = ALTITUDE_M / wd;
                 let (gn, ge) = (north + t * wn, east + t * we);
-                return ground_colour(world, gn, ge, t * length, roads);
+                return ground_colour(world, gn, ge, t * length, roads, haze);
             }
             let elevation = (-wd / length).clamp(0.0, 1.0);
             let mut c = sky_colour(elevation);
@@ -312,7 +342,10 @@ impl Renderer {
                 *o = v.round().clamp(0.0, 255.0) as u8;
             }
         }
-        (image, truth)
+        // Over-exposure can clip sky and distant ground alike: then there is no horizon in
+        // the image to find, and the frame is scored on honesty only.
+        let visible = crate::terrain::horizon_in_image(&image, &self.camera, roll, pitch);
+        (image, Truth { visible, ..truth })
     }
 
     fn degrade(
@@ -516,9 +549,30 @@ fn sky_colour(elevation: f32) -> [f32; 3] {
     std::array::from_fn(|i| horizon[i] + (zenith[i] - horizon[i]) * t)
 }
 
+/// Haze on the ground: the distance over which it thickens (1 − e⁻¹) and its colour.
+#[derive(Clone, Copy)]
+struct Haze {
+    distance_m: f32,
+    colour: [f32; 3],
+}
+
+impl Haze {
+    const NORMAL: Haze = Haze {
+        distance_m: 2500.0,
+        colour: [150.0, 160.0, 170.0],
+    };
+}
+
 /// Fields (patches with their own colour), fine texture, optionally roads and strong field
 /// edges; distant ground fades into haze (which is what makes real horizons low-contrast).
-fn ground_colour(world: u64, north: f32, east: f32, distance: f32, roads: bool) -> [f32; 3] {
+fn ground_colour(
+    world: u64,
+    north: f32,
+    east: f32,
+    distance: f32,
+    roads: bool,
+    haze: Haze,
+) -> [f32; 3] {
     const PALETTE: [[f32; 3]; 5] = [
         [78.0, 110.0, 52.0],
         [96.0, 120.0, 60.0],
@@ -558,7 +612,6 @@ fn ground_colour(world: u64, north: f32, east: f32, distance: f32, roads: bool) 
         }
     }
     let texture = (fbm(world ^ 0x7E7, north / 6.0, east / 6.0, 3) - 0.5) * 40.0;
-    let haze = 1.0 - (-distance / 2500.0).exp();
-    let haze_colour = [150.0, 160.0, 170.0];
-    std::array::from_fn(|i| (c[i] + texture) * (1.0 - haze) + haze_colour[i] * haze)
+    let k = 1.0 - (-distance / haze.distance_m).exp();
+    std::array::from_fn(|i| (c[i] + texture) * (1.0 - k) + haze.colour[i] * k)
 }

@@ -1,0 +1,453 @@
+//! Full-resolution placement of the chosen line: where in the sky-to-ground transition the
+//! horizon is.
+//!
+//! The Hough stage works on a binned image (2× at 320 px, 3× at 480 px, more on noisy
+//! frames) with a 3×3 Sobel, so its edge is the gradient maximum of a picture smoothed over
+//! ±4–9 full-resolution pixels. A real horizon is not a symmetric step: below it the ground
+//! comes out of the haze (airlight) gradually, so the intensity is a small step at the
+//! horizon followed by a ramp. Smoothing a step-plus-ramp moves its gradient maximum into
+//! the ramp by about `slope · σ² / step`, quadratic in the smoothing σ: that put the line
+//! ~9 px below the labelled horizon at 480 px (+1.2° of pitch) while OpenCV's 5×5 blur +
+//! Canny, with a third of the σ, was off by +0.2°.
+//!
+//! Here the line is moved to the gradient maximum of the full-resolution frame, measured on
+//! an intensity profile across the line that is averaged *along* it (hundreds of pixels a
+//! bin, so noise averages out without smoothing across the edge). Every pixel near the line
+//! is put in a bin by the distance of its centre (the conventions' pixel centres: pixel
+//! `(u, v)` at the integer point) from the line, through the camera model, so distortion is
+//! handled exactly. The left and right halves of the frame give one such profile each; the
+//! line through their two positions also refines the roll.
+
+use super::HorizonLine;
+use super::camera::Camera;
+use super::frame::{Frame, Pixels, luma};
+
+/// Bins of the profile either side of the coarse line, each [`BIN_PX`] wide.
+const HALF_BINS: usize = 48;
+const BINS: usize = 2 * HALF_BINS + 1;
+const BIN_PX: f32 = 0.5;
+/// Least ratio of the edge's gradient to the profile's gradient noise for the position to be
+/// trusted (below it the coarse line stays).
+pub(crate) const MIN_SIGNIFICANCE: f32 = 4.0;
+/// Largest roll change the two half-profiles may make (rad): more means the halves see
+/// different edges (an occlusion, a curved shore), and only the offset is moved.
+const MAX_ROLL_CHANGE: f32 = 0.03;
+
+/// What the full-resolution look at the line found.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct Placement {
+    /// Step across the edge (luma levels, sky minus ground, positive when the sky is
+    /// brighter) measured 2 px either side of the edge.
+    pub step: f32,
+    /// The edge's gradient over the profile's gradient noise.
+    pub significance: f32,
+    /// Share of the profile's pixels at or above clipping on the sky side near the edge.
+    pub clipped_sky: f32,
+    /// Pixels that went into the profiles.
+    pub pixels: u32,
+}
+
+#[derive(Clone, Copy)]
+struct Profile {
+    sum: [f32; BINS],
+    count: [u32; BINS],
+    clipped: [u32; BINS],
+    /// Sum of the line's points (normalised undistorted) and of |∇D| over the columns.
+    point: (f32, f32),
+    gradient: f32,
+    columns: u32,
+}
+
+impl Profile {
+    const EMPTY: Profile = Profile {
+        sum: [0.0; BINS],
+        count: [0; BINS],
+        clipped: [0; BINS],
+        point: (0.0, 0.0),
+        gradient: 0.0,
+        columns: 0,
+    };
+
+    fn merged(&self, other: &Profile) -> Profile {
+        let mut m = *self;
+        for i in 0..BINS {
+            if let (Some(s), Some(c), Some(k)) =
+                (m.sum.get_mut(i), m.count.get_mut(i), m.clipped.get_mut(i))
+            {
+                *s += other.sum.get(i).copied().unwrap_or(0.0);
+                *c += other.count.get(i).copied().unwrap_or(0);
+                *k += other.clipped.get(i).copied().unwrap_or(0);
+            }
+        }
+        m.point = (m.point.0 + other.point.0, m.point.1 + other.point.1);
+        m.gradient += other.gradient;
+        m.columns += other.columns;
+        m
+    }
+
+    /// Mean luma per bin, gaps filled linearly; `None` if the profile has too few bins.
+    fn means(&self) -> Option<[f32; BINS]> {
+        let mut m = [f32::NAN; BINS];
+        let (mut filled, mut first, mut last) = (0usize, BINS, 0usize);
+        for (i, ((out, &s), &c)) in m.iter_mut().zip(&self.sum).zip(&self.count).enumerate() {
+            if c > 0 {
+                *out = s / c as f32;
+                filled += 1;
+                first = first.min(i);
+                last = i;
+            }
+        }
+        // A level line fills only every other bin; fewer than that is not a profile.
+        if first >= last || last - first < 8 || 3 * filled < last - first + 1 {
+            return None;
+        }
+        // Gaps (a level line fills only every other bin) from the nearest filled bins.
+        let mut last: Option<(usize, f32)> = None;
+        let mut i = 0;
+        while i < BINS {
+            let v = m.get(i).copied().unwrap_or(f32::NAN);
+            if v.is_nan() {
+                let next = (i + 1..BINS).find_map(|j| {
+                    let w = m.get(j).copied().unwrap_or(f32::NAN);
+                    (!w.is_nan()).then_some((j, w))
+                });
+                let value = match (last, next) {
+                    (Some((a, va)), Some((b, vb))) => {
+                        va + (vb - va) * (i - a) as f32 / (b - a) as f32
+                    }
+                    (Some((_, va)), None) => va,
+                    (None, Some((_, vb))) => vb,
+                    (None, None) => 0.0,
+                };
+                if let Some(slot) = m.get_mut(i) {
+                    *slot = value;
+                }
+            } else {
+                last = Some((i, v));
+            }
+            i += 1;
+        }
+        Some(m)
+    }
+}
+
+/// One side's result: the edge's offset from the coarse line (px, positive towards the
+/// ground), its gradient and significance.
+#[derive(Clone, Copy, Debug)]
+struct Edge {
+    offset_px: f32,
+    step: f32,
+    significance: f32,
+}
+
+/// The edge in a profile within `[-sky_px, ground_px]` of the coarse line, with the
+/// polarity `sky_brighter`.
+fn find_edge(profile: &Profile, sky_px: f32, ground_px: f32, sky_brighter: bool) -> Option<Edge> {
+    let m = profile.means()?;
+    // A light [1 2 1] smoothing across bins (half a pixel), then a central difference over
+    // one pixel: symmetric, so it moves no edge.
+    let mut smooth = m;
+    for i in 1..BINS - 1 {
+        if let (Some(a), Some(b), Some(c), Some(out)) =
+            (m.get(i - 1), m.get(i), m.get(i + 1), smooth.get_mut(i))
+        {
+            *out = 0.25 * a + 0.5 * b + 0.25 * c;
+        }
+    }
+    let sign = if sky_brighter { 1.0 } else { -1.0 };
+    let gradient = |i: usize| -> f32 {
+        match (
+            i.checked_sub(1).and_then(|j| smooth.get(j)),
+            smooth.get(i + 1),
+        ) {
+            (Some(a), Some(b)) => sign * (a - b),
+            _ => 0.0,
+        }
+    };
+    let bin_of = |d: f32| (d / BIN_PX + HALF_BINS as f32) as isize;
+    let lo = bin_of(-sky_px).clamp(2, BINS as isize - 3) as usize;
+    let hi = bin_of(ground_px).clamp(2, BINS as isize - 3) as usize;
+    let mut best = (lo, f32::MIN);
+    for i in lo..=hi {
+        let g = gradient(i);
+        if g > best.1 {
+            best = (i, g);
+        }
+    }
+    let (peak, g0) = best;
+    if g0 <= 0.0 {
+        return None;
+    }
+    // Noise: the spread of the gradient away from the edge (outside ±3 px of it).
+    let (mut n, mut s2) = (0.0f32, 0.0f32);
+    for i in 2..BINS - 2 {
+        if (i as isize - peak as isize).unsigned_abs() as f32 * BIN_PX <= 3.0 {
+            continue;
+        }
+        let g = gradient(i) - gradient(i + 1);
+        n += 1.0;
+        s2 += g * g;
+    }
+    let noise = if n > 0.0 {
+        libm::sqrtf(s2 / n) * core::f32::consts::FRAC_1_SQRT_2
+    } else {
+        0.0
+    };
+    // Sub-bin position: parabola through the peak and its neighbours.
+    let (a, c) = (gradient(peak.saturating_sub(1)), gradient(peak + 1));
+    let curvature = a - 2.0 * g0 + c;
+    let sub = if curvature < 0.0 {
+        (0.5 * (a - c) / curvature).clamp(-0.5, 0.5)
+    } else {
+        0.0
+    };
+    let offset_px = (peak as f32 + sub - HALF_BINS as f32) * BIN_PX;
+    let at = |d: f32| {
+        let i = bin_of(d).clamp(0, BINS as isize - 1) as usize;
+        smooth.get(i).copied().unwrap_or(0.0)
+    };
+    Some(Edge {
+        offset_px,
+        step: at(offset_px - 2.0) - at(offset_px + 2.0),
+        significance: g0 / (noise + 0.05),
+    })
+}
+
+/// Luma of a pixel (grey or RGB).
+#[inline]
+fn luma_at(frame: &Frame<'_>, u: usize, v: usize) -> u8 {
+    let row = frame.row(v);
+    match frame.pixels() {
+        Pixels::Grey(_) => row.get(u).copied().unwrap_or(0),
+        Pixels::Rgb(_) => match row.get(u * 3..u * 3 + 3) {
+            Some(&[r, g, b]) => luma(r, g, b),
+            _ => 0,
+        },
+    }
+}
+
+/// `D = s·x + c·y − offset` at a pixel (normalised undistorted units), positive on the ground.
+#[inline]
+fn distance(camera: &Camera, line: &HorizonLine, sc: (f32, f32), u: f32, v: f32) -> Option<f32> {
+    let (x, y) = camera.undistort_pixel(u, v)?;
+    Some(sc.0 * x + sc.1 * y - line.offset)
+}
+
+/// Moves `line` to the full-resolution edge within `search_px` pixels on its sky side (and a
+/// few on its ground side). `sky_brighter`: the polarity the Hough stage saw. Returns the
+/// placed line (the input line when the edge is not significant) and what was measured.
+pub(crate) fn place(
+    frame: &Frame<'_>,
+    camera: &Camera,
+    line: HorizonLine,
+    search_px: f32,
+    sky_brighter: bool,
+) -> (HorizonLine, Placement) {
+    let (w, h) = (frame.width(), frame.height());
+    let sc = (
+        libm::sinf(line.camera_roll_rad),
+        libm::cosf(line.camera_roll_rad),
+    );
+    // Walk along the image axis the line is closer to: columns for a flat line.
+    let along_columns = libm::fabsf(sc.1 * camera.fx) >= libm::fabsf(sc.0 * camera.fy);
+    let search_px = search_px.clamp(2.0, HALF_BINS as f32 * BIN_PX - 3.0);
+    let ground_px = (0.5 * search_px).max(3.0);
+    let (reach_sky, reach_ground) = (search_px + 3.0, ground_px + 3.0);
+    let (major, minor) = if along_columns { (w, h) } else { (h, w) };
+    let centre = if along_columns { camera.cx } else { camera.cy };
+    let mut halves = [Profile::EMPTY, Profile::EMPTY];
+    let pixel = |a: f32, b: f32| if along_columns { (a, b) } else { (b, a) };
+    let mut total_pixels = 0u32;
+    // Every other column (row) on wide frames: half the reads, and the line's slope still
+    // spreads the pixel centres over the bins.
+    let step = if major > 200 { 2 } else { 1 };
+    let distorted = camera.k1 != 0.0 || camera.k2 != 0.0;
+    let mut previous: Option<f32> = None;
+    for a in (0..major).step_by(step) {
+        let af = a as f32;
+        // Where the line crosses this column (row): pinhole guess, then Newton on the
+        // distorted model.
+        let (x0, y0) = if along_columns {
+            ((af - camera.cx) / camera.fx, 0.0)
+        } else {
+            (0.0, (af - camera.cy) / camera.fy)
+        };
+        let mut b = if along_columns {
+            let y = (line.offset - sc.0 * x0) / sc.1;
+            camera.cy + camera.fy * y
+        } else {
+            let x = (line.offset - sc.1 * y0) / sc.0;
+            camera.cx + camera.fx * x
+        };
+        if distorted && let Some(p) = previous {
+            b = p;
+        }
+        if !b.is_finite() {
+            continue;
+        }
+        let mut slope = 0.0;
+        let mut ok = true;
+        // D is linear in the pixel without distortion: one step lands on the line.
+        for _ in 0..if distorted { 2 } else { 1 } {
+            let (p0, p1) = (pixel(af, b), pixel(af, b + 1.0));
+            match (
+                distance(camera, &line, sc, p0.0, p0.1),
+                distance(camera, &line, sc, p1.0, p1.1),
+            ) {
+                (Some(d0), Some(d1)) if libm::fabsf(d1 - d0) > 1e-9 => {
+                    slope = d1 - d0;
+                    b -= d0 / slope;
+                }
+                _ => {
+                    ok = false;
+                    break;
+                }
+            }
+            if !b.is_finite() || b < -reach_sky - 2.0 || b > minor as f32 + reach_sky + 2.0 {
+                ok = false;
+                break;
+            }
+        }
+        if !ok {
+            previous = None;
+            continue;
+        }
+        previous = Some(b);
+        // The other component of the gradient of D, for the distance across the line.
+        let p = pixel(af, b);
+        let q = pixel(af + 1.0, b);
+        let (Some(d_here), Some(d_next)) = (
+            distance(camera, &line, sc, p.0, p.1),
+            distance(camera, &line, sc, q.0, q.1),
+        ) else {
+            continue;
+        };
+        let other = d_next - d_here;
+        let norm = libm::sqrtf(slope * slope + other * other);
+        if norm.is_nan() || norm <= 0.0 {
+            continue;
+        }
+        // Pixels per unit of v (or u) across the line; positive towards the ground.
+        let k = slope / norm;
+        if libm::fabsf(k) < 0.3 {
+            continue;
+        }
+        let (lo, hi) = if k > 0.0 {
+            (b - reach_sky / k, b + reach_ground / k)
+        } else {
+            (b + reach_ground / k, b - reach_sky / k)
+        };
+        let first = libm::ceilf(lo).max(0.0) as usize;
+        let last = libm::floorf(hi).min(minor as f32 - 1.0);
+        if last < 0.0 {
+            continue;
+        }
+        let last = last as usize;
+        if first > last {
+            continue;
+        }
+        let Some((lx, ly)) = camera.undistort_pixel(p.0, p.1) else {
+            continue;
+        };
+        let half = usize::from(af >= centre);
+        let Some(profile) = halves.get_mut(half) else {
+            continue;
+        };
+        profile.point = (profile.point.0 + lx, profile.point.1 + ly);
+        profile.gradient += norm;
+        profile.columns += 1;
+        for c in first..=last {
+            let d = (c as f32 - b) * k;
+            let bin = libm::floorf(d / BIN_PX + HALF_BINS as f32 + 0.5);
+            if !(0.0..BINS as f32).contains(&bin) {
+                continue;
+            }
+            let bin = bin as usize;
+            let (u, v) = if along_columns { (a, c) } else { (c, a) };
+            let value = luma_at(frame, u, v);
+            if let (Some(sum), Some(count), Some(clip)) = (
+                profile.sum.get_mut(bin),
+                profile.count.get_mut(bin),
+                profile.clipped.get_mut(bin),
+            ) {
+                *sum += f32::from(value);
+                *count += 1;
+                *clip += u32::from(value >= 250);
+            }
+            total_pixels += 1;
+        }
+    }
+    let [left, right] = halves;
+    let both = left.merged(&right);
+    let mut placement = Placement {
+        pixels: total_pixels,
+        ..Placement::default()
+    };
+    let Some(whole) = find_edge(&both, search_px, ground_px, sky_brighter) else {
+        return (line, placement);
+    };
+    placement.step = whole.step * if sky_brighter { 1.0 } else { -1.0 };
+    placement.significance = whole.significance;
+    // Clipping on the sky side within 4 px of the edge.
+    let (mut clipped, mut counted) = (0u32, 0u32);
+    for i in 0..BINS {
+        let d = (i as f32 - HALF_BINS as f32) * BIN_PX;
+        if d < whole.offset_px - 4.0 || d > whole.offset_px - 0.5 {
+            continue;
+        }
+        clipped += both.clipped.get(i).copied().unwrap_or(0);
+        counted += both.count.get(i).copied().unwrap_or(0);
+    }
+    placement.clipped_sky = if counted > 0 {
+        clipped as f32 / counted as f32
+    } else {
+        0.0
+    };
+    if whole.significance < MIN_SIGNIFICANCE || both.columns == 0 {
+        return (line, placement);
+    }
+    let gradient = both.gradient / both.columns as f32;
+    let shifted = HorizonLine {
+        camera_roll_rad: line.camera_roll_rad,
+        offset: line.offset + whole.offset_px * gradient,
+    };
+    // Roll from the two halves, when both see the same edge clearly.
+    let sides = [&left, &right].map(|p| {
+        if p.columns < 8 {
+            return None;
+        }
+        let e = find_edge(p, search_px, ground_px, sky_brighter)?;
+        if e.significance < MIN_SIGNIFICANCE || libm::fabsf(e.offset_px - whole.offset_px) > 3.0 {
+            return None;
+        }
+        let n = p.columns as f32;
+        let (px, py) = (p.point.0 / n, p.point.1 / n);
+        let g = p.gradient / n;
+        Some((px + sc.0 * e.offset_px * g, py + sc.1 * e.offset_px * g))
+    });
+    if let [Some(l), Some(r)] = sides {
+        let (ex, ey) = (r.0 - l.0, r.1 - l.1);
+        let length = libm::sqrtf(ex * ex + ey * ey);
+        if length > 1e-6 {
+            // Normal of the new line, on the same side as the old one.
+            let (mut nx, mut ny) = (-ey / length, ex / length);
+            if nx * sc.0 + ny * sc.1 < 0.0 {
+                nx = -nx;
+                ny = -ny;
+            }
+            let roll = libm::atan2f(nx, ny);
+            let change = super::hough::wrap_angle(roll - line.camera_roll_rad);
+            if libm::fabsf(change) <= MAX_ROLL_CHANGE {
+                let mid = (0.5 * (l.0 + r.0), 0.5 * (l.1 + r.1));
+                return (
+                    HorizonLine {
+                        camera_roll_rad: roll,
+                        offset: nx * mid.0 + ny * mid.1,
+                    },
+                    placement,
+                );
+            }
+        }
+    }
+    (shifted, placement)
+}
