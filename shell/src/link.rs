@@ -25,22 +25,7 @@ const MAX_DATAGRAM: usize = 1472;
 /// Reads a 32-byte key: 64 hex digits (a newline may follow) or 32 raw bytes. A key others
 /// could read is refused: whoever reads it can fly the airplane.
 pub fn load_key(path: &Path) -> Result<LinkKey, String> {
-    use std::os::unix::fs::PermissionsExt;
-    let meta = std::fs::metadata(path).map_err(|e| format!("key {}: {e}", path.display()))?;
-    if meta.permissions().mode() & 0o077 != 0 {
-        return Err(format!(
-            "key {}: readable by group or others (mode {:o}); chmod 600 it",
-            path.display(),
-            meta.permissions().mode() & 0o777
-        ));
-    }
-    let bytes = skyframe_input_files::read_bytes(path, "key", skyframe_input_files::KEY_LIMIT)?;
-    if let Ok(raw) = <[u8; 32]>::try_from(bytes.as_slice()) {
-        return Ok(LinkKey::new(raw));
-    }
-    let text = String::from_utf8_lossy(&bytes);
-    LinkKey::from_hex(text.trim())
-        .ok_or_else(|| format!("key {}: not 64 hex digits or 32 bytes", path.display()))
+    skyframe_input_files::read_key_file(path)
 }
 
 fn random_bytes<const N: usize>() -> Result<[u8; N], String> {

@@ -4,11 +4,10 @@
 //! `flights/*/link.key` under the current directory (where `skyframe sim` leaves a fresh
 //! one), else there is none: monitoring works, commands are refused.
 
-use skyframe_core::link::auth::{self, KEY_LEN, LinkKey};
+use skyframe_core::link::auth::{self, LinkKey};
 use std::fmt;
 use std::fs;
 use std::io;
-use std::os::unix::fs::PermissionsExt;
 use std::path::{Path, PathBuf};
 
 pub const KEY_ENV: &str = "SKYFRAME_KEY";
@@ -39,35 +38,7 @@ pub struct LoadedKey {
 /// Reads a key file: 64 hex digits (a trailing newline allowed) or 32 raw bytes. Refuses a
 /// file that group or others can read: a key that leaked is no key.
 pub fn read_key_file(path: &Path) -> Result<LinkKey, String> {
-    let metadata =
-        fs::metadata(path).map_err(|e| format!("cannot read key {}: {e}", path.display()))?;
-    let mode = metadata.permissions().mode();
-    if mode & 0o077 != 0 {
-        return Err(format!(
-            "key file {} is readable by others (mode {:o}); chmod 600 it",
-            path.display(),
-            mode & 0o777
-        ));
-    }
-    let bytes = skyframe_input_files::read_bytes(path, "key", skyframe_input_files::KEY_LIMIT)?;
-    parse_key_bytes(&bytes).ok_or_else(|| {
-        format!(
-            "key file {} is not 64 hex digits or 32 bytes",
-            path.display()
-        )
-    })
-}
-
-fn parse_key_bytes(bytes: &[u8]) -> Option<LinkKey> {
-    let text = bytes
-        .strip_suffix(b"\r\n")
-        .or_else(|| bytes.strip_suffix(b"\n"))
-        .unwrap_or(bytes);
-    if let Some(key) = std::str::from_utf8(text).ok().and_then(LinkKey::from_hex) {
-        return Some(key);
-    }
-    let raw: [u8; KEY_LEN] = bytes.try_into().ok()?;
-    Some(LinkKey::new(raw))
+    skyframe_input_files::read_key_file(path)
 }
 
 /// The key as the command line, environment and current directory give it.
@@ -189,6 +160,7 @@ pub fn default_state_dir() -> PathBuf {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::os::unix::fs::PermissionsExt;
 
     fn write_key(dir: &Path, name: &str, contents: &[u8], mode: u32) -> PathBuf {
         let path = dir.join(name);
@@ -214,7 +186,7 @@ mod tests {
         let dir = tempfile::tempdir().expect("tempdir");
         let open = write_key(dir.path(), "a", HEX.as_bytes(), 0o640);
         let error = read_key_file(&open).expect_err("refused");
-        assert!(error.contains("readable by others"), "{error}");
+        assert!(error.contains("readable by group or others"), "{error}");
         let short = write_key(dir.path(), "b", b"abcd", 0o600);
         assert!(read_key_file(&short).is_err());
     }

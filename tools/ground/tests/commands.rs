@@ -160,7 +160,7 @@ fn a_group_readable_key_file_is_refused_with_one_line() {
     assert_eq!(output.status.code(), Some(2));
     let message = stderr(&output);
     assert_eq!(message.lines().count(), 1, "{message}");
-    assert!(message.contains("readable by others"), "{message}");
+    assert!(message.contains("readable by group or others"), "{message}");
 }
 
 #[test]

@@ -27,8 +27,9 @@ pub struct CameraFile {
 
 impl CameraFile {
     pub fn load(path: &Path) -> Result<Camera, Error> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| Error::input(format!("{}: {e}", path.display())))?;
+        let text =
+            skyframe_input_files::read_text(path, "camera", skyframe_input_files::CONFIG_LIMIT)
+                .map_err(Error::input)?;
         Self::parse(&text).map_err(|e| Error::input(format!("{}: {e}", path.display())))
     }
 

@@ -68,10 +68,8 @@ pub struct Sender {
 }
 
 fn read_key(path: &Path) -> Result<LinkKey, Error> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| Error::input(format!("{}: {e}", path.display())))?;
-    LinkKey::from_hex(text.trim())
-        .ok_or_else(|| Error::input(format!("{}: a link key is 64 hex digits", path.display())))
+    // The vehicle's and the ground's key reader: bounded, and a key others can read refused.
+    skyframe_input_files::read_key_file(path).map_err(Error::input)
 }
 
 fn resolve(addr: &str) -> Result<SocketAddr, Error> {

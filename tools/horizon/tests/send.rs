@@ -34,7 +34,15 @@ fn flight(dir: &Path, frames: usize) {
         .status()
         .expect("synth");
     assert!(status.success());
-    std::fs::write(dir.join("key"), format!("{KEY_HEX}\n")).expect("key file");
+    write_key(dir, format!("{KEY_HEX}\n").as_bytes(), 0o600);
+}
+
+/// The key file as the link wants it: readable by its owner only.
+fn write_key(dir: &Path, contents: &[u8], mode: u32) {
+    use std::os::unix::fs::PermissionsExt;
+    let path = dir.join("key");
+    std::fs::write(&path, contents).expect("key file");
+    std::fs::set_permissions(&path, std::fs::Permissions::from_mode(mode)).expect("chmod");
 }
 
 fn key() -> LinkKey {
@@ -129,7 +137,7 @@ fn run_id_and_clock_are_learned_from_telemetry() {
         .expect("probe")
         .local_addr()
         .expect("address");
-    let child = Process::new(env!("CARGO_BIN_EXE_skyframe-horizon"))
+    let mut child = Process::new(env!("CARGO_BIN_EXE_skyframe-horizon"))
         .args([
             "detect",
             dir.to_str().expect("utf-8"),
@@ -161,7 +169,16 @@ fn run_id_and_clock_are_learned_from_telemetry() {
         .set_read_timeout(Some(Duration::from_millis(50)))
         .expect("timeout");
     let mut buffer = [0u8; 1500];
+    let started = std::time::Instant::now();
     let first = loop {
+        // A tool that gave up (or never started listening) ends the test, not a hang.
+        if let Some(status) = child.try_wait().expect("wait") {
+            panic!("skyframe-horizon exited before sending: {status}");
+        }
+        assert!(
+            started.elapsed() < Duration::from_secs(30),
+            "no command in 30 s"
+        );
         vehicle
             .send_to(&datagram[..n], listen)
             .expect("telemetry sent");
@@ -196,7 +213,7 @@ fn run_id_and_clock_are_learned_from_telemetry() {
 fn a_bad_key_file_is_refused() {
     let dir = scratch("badkey");
     flight(&dir, 1);
-    std::fs::write(dir.join("key"), "not hex").expect("write");
+    write_key(&dir, b"not hex", 0o600);
     let out = Process::new(env!("CARGO_BIN_EXE_skyframe-horizon"))
         .args([
             "detect",
@@ -216,4 +233,28 @@ fn a_bad_key_file_is_refused() {
         .expect("runs");
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("64 hex digits"));
+}
+
+#[test]
+fn a_key_others_can_read_is_refused() {
+    let dir = scratch("openkey");
+    flight(&dir, 1);
+    write_key(&dir, format!("{KEY_HEX}\n").as_bytes(), 0o644);
+    let out = Process::new(env!("CARGO_BIN_EXE_skyframe-horizon"))
+        .args([
+            "detect",
+            dir.to_str().expect("utf-8"),
+            "--send",
+            "127.0.0.1:9",
+        ])
+        .args(["--key", dir.join("key").to_str().expect("utf-8")])
+        .args(["--run-id", "1", "--vehicle-id", "1"])
+        .output()
+        .expect("runs");
+    assert_eq!(out.status.code(), Some(2));
+    let text = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        text.contains("readable by group or others (mode 644)"),
+        "{text}"
+    );
 }

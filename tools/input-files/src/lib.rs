@@ -2,6 +2,7 @@
 //! must say "too large" at once instead of reading until memory runs out. Every error is one
 //! line that names the file (and what it was meant to be).
 
+use skyframe_core::link::auth::LinkKey;
 use std::fs::File;
 use std::io::Read;
 use std::path::Path;
@@ -43,6 +44,35 @@ pub fn read_text(path: &Path, what: &str, limit: u64) -> Result<String, String> 
     })
 }
 
+/// A link key file: 64 hex digits (one trailing newline allowed) or 32 raw bytes, refused if
+/// group or others may read it (whoever reads the key can fly the airplane). The one reader
+/// of key files for the vehicle, the ground station and the horizon sender.
+pub fn read_key_file(path: &Path) -> Result<LinkKey, String> {
+    use std::os::unix::fs::PermissionsExt;
+    let mode = std::fs::metadata(path)
+        .map_err(|e| format!("key {}: {e}", path.display()))?
+        .permissions()
+        .mode();
+    if mode & 0o077 != 0 {
+        return Err(format!(
+            "key {}: readable by group or others (mode {:o}); chmod 600 it",
+            path.display(),
+            mode & 0o777
+        ));
+    }
+    let bytes = read_bytes(path, "key", KEY_LIMIT)?;
+    let text = bytes
+        .strip_suffix(b"\r\n")
+        .or_else(|| bytes.strip_suffix(b"\n"))
+        .unwrap_or(&bytes);
+    if let Some(key) = std::str::from_utf8(text).ok().and_then(LinkKey::from_hex) {
+        return Ok(key);
+    }
+    <[u8; 32]>::try_from(bytes.as_slice())
+        .map(LinkKey::new)
+        .map_err(|_| format!("key {}: not 64 hex digits or 32 bytes", path.display()))
+}
+
 fn size_text(bytes: u64) -> String {
     if bytes >= 1024 * 1024 && bytes % (1024 * 1024) == 0 {
         format!("{} MiB", bytes / (1024 * 1024))
@@ -56,6 +86,42 @@ fn size_text(bytes: u64) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn key_file(dir: &Path, name: &str, contents: &[u8], mode: u32) -> std::path::PathBuf {
+        use std::os::unix::fs::PermissionsExt;
+        let path = dir.join(name);
+        std::fs::write(&path, contents).expect("write");
+        std::fs::set_permissions(&path, std::fs::Permissions::from_mode(mode)).expect("chmod");
+        path
+    }
+
+    #[test]
+    fn keys_read_from_hex_or_raw_bytes_and_others_are_refused() {
+        let dir = tempfile::tempdir().expect("dir");
+        let hex: String = (0u8..32).map(|b| format!("{b:02x}")).collect();
+        let raw: Vec<u8> = (0u8..32).collect();
+        let from_hex = read_key_file(&key_file(
+            dir.path(),
+            "h",
+            format!("{hex}\n").as_bytes(),
+            0o600,
+        ));
+        let from_raw = read_key_file(&key_file(dir.path(), "r", &raw, 0o400));
+        assert_eq!(from_hex.expect("hex"), from_raw.expect("raw"));
+        let open = read_key_file(&key_file(dir.path(), "o", hex.as_bytes(), 0o640));
+        assert!(
+            open.expect_err("group readable")
+                .ends_with("readable by group or others (mode 640); chmod 600 it")
+        );
+        let short = read_key_file(&key_file(dir.path(), "s", b"abcd", 0o600));
+        assert!(
+            short
+                .expect_err("short")
+                .ends_with("not 64 hex digits or 32 bytes")
+        );
+        let zero = read_key_file(Path::new("/dev/zero")).expect_err("endless");
+        assert!(zero.contains("/dev/zero"), "{zero}");
+    }
 
     #[test]
     fn an_endless_file_is_refused_after_the_limit_not_read_to_the_end() {
