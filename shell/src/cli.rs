@@ -58,6 +58,29 @@ pub enum Command {
     /// Score a simulated flight's logs against its ground truth again (what `sim --score`
     /// prints), e.g. after the scoring changed or for a flight flown without `--score`.
     Score(ScoreArgs),
+    /// Run skyframe's estimator over a real flight log (PX4 .ulg, ArduPilot .bin) through the
+    /// shipped frame table and compare it with the onboard estimate in the same log
+    /// (agreement, not accuracy: the onboard estimator is not truth). docs/replay.md.
+    Replay(ReplayArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct ReplayArgs {
+    /// The flight log: PX4 ULog (.ulg) or ArduPilot DataFlash (.bin), told apart by content.
+    pub log: PathBuf,
+    /// Print the report as one JSON object.
+    #[arg(long)]
+    pub json: bool,
+    /// Write figures (attitude.png, attitude_difference.png) into this directory.
+    #[arg(long, value_name = "DIR")]
+    pub plot: Option<PathBuf>,
+    /// How the estimator starts: its own alignment, or a warm start from the onboard
+    /// attitude at launch when the log never rests for 10 s (auto).
+    #[arg(long, value_enum, default_value = "auto")]
+    pub start: crate::replay::StartMode,
+    /// The GPS latency the estimator assumes, in ms (default: its configuration's).
+    #[arg(long, value_name = "MS")]
+    pub gps_latency_ms: Option<f64>,
 }
 
 #[derive(Args, Debug, Clone)]
@@ -445,6 +468,30 @@ fn run<P: Platform>(platform: &P, command: Command) -> Result<ExitCode, String> 
             } else {
                 print!("{}", render_flight(&report));
                 print!("{}", crate::score::render_score(&score));
+            }
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::Replay(args) => {
+            let options = crate::replay::RunOptions {
+                start: args.start,
+                gps_latency_ms: args.gps_latency_ms,
+                gps_velocity_sd_m_s: None,
+            };
+            let (report, series, _) = crate::replay::replay_file(&args.log, options)?;
+            if let Some(dir) = &args.plot {
+                let title = args
+                    .log
+                    .file_name()
+                    .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+                for path in crate::replay::plot::write(dir, &title, &series)? {
+                    eprintln!("wrote {path}");
+                }
+            }
+            if args.json {
+                let text = serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?;
+                println!("{text}");
+            } else {
+                print!("{}", crate::replay::render(&report));
             }
             Ok(ExitCode::SUCCESS)
         }
