@@ -342,3 +342,111 @@ pub fn compare(log: &FlightLog, run: &RunResult) -> (Agreement, Series) {
         series,
     )
 }
+
+/// An arbiter for yaw that neither estimator uses: the wind triangle. With the airspeed
+/// sensor, ground velocity = k · airspeed · (cos ψ, sin ψ) + wind, for a heading ψ, an
+/// airspeed scale k and a wind constant over the flight; fitted by least squares over the
+/// airborne GPS fixes, the heading that leaves the smaller residual is the more consistent
+/// one (sideslip and a changing wind add to both alike).
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct WindTriangleFit {
+    pub airspeed_scale: f64,
+    pub wind_north_m_s: f64,
+    pub wind_east_m_s: f64,
+    /// RMS of the ground-velocity residual (per component).
+    pub residual_rms_m_s: f64,
+    /// The heading against the direction of (ground velocity − wind): RMS, degrees.
+    pub heading_vs_air_track_rms_deg: f64,
+    pub fixes: usize,
+}
+
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct HeadingCheck {
+    pub ours: WindTriangleFit,
+    pub onboard: Option<WindTriangleFit>,
+}
+
+fn airspeed_at(log: &FlightLog, t_us: u64) -> Option<f64> {
+    let a = &log.airspeed;
+    let i = a.partition_point(|s| s.0 < t_us);
+    [i.checked_sub(1), Some(i)]
+        .into_iter()
+        .flatten()
+        .filter_map(|k| a.get(k))
+        .filter(|s| s.0.abs_diff(t_us) <= 200_000)
+        .min_by_key(|s| s.0.abs_diff(t_us))
+        .map(|s| s.1)
+}
+
+fn fit(samples: &[(f64, f64, f64, f64)]) -> Option<WindTriangleFit> {
+    // Unknowns x = (k, Wn, We); rows: vn = k·va·cosψ + Wn, ve = k·va·sinψ + We.
+    let mut ata = [[0f64; 3]; 3];
+    let mut atb = [0f64; 3];
+    let mut rows = Vec::with_capacity(samples.len() * 2);
+    for &(vn, ve, va, yaw) in samples {
+        rows.push(([va * yaw.cos(), 1.0, 0.0], vn));
+        rows.push(([va * yaw.sin(), 0.0, 1.0], ve));
+    }
+    for (a, b) in &rows {
+        for i in 0..3 {
+            for j in 0..3 {
+                ata[i][j] += a[i] * a[j];
+            }
+            atb[i] += a[i] * b;
+        }
+    }
+    let m = skyframe_core::estimation::nalgebra::Matrix3::from_fn(|i, j| ata[i][j]);
+    let x = m.lu().solve(&Vector3::new(atb[0], atb[1], atb[2]))?;
+    if samples.len() < 10 || !x.iter().all(|v| v.is_finite()) {
+        return None;
+    }
+    let residual = (rows
+        .iter()
+        .map(|(a, b)| (a[0] * x[0] + a[1] * x[1] + a[2] * x[2] - b).powi(2))
+        .sum::<f64>()
+        / rows.len() as f64)
+        .sqrt();
+    let heading = (samples
+        .iter()
+        .map(|&(vn, ve, _, yaw)| wrap((ve - x[2]).atan2(vn - x[1]) - yaw).powi(2))
+        .sum::<f64>()
+        / samples.len() as f64)
+        .sqrt()
+        .to_degrees();
+    Some(WindTriangleFit {
+        airspeed_scale: x[0],
+        wind_north_m_s: x[1],
+        wind_east_m_s: x[2],
+        residual_rms_m_s: residual,
+        heading_vs_air_track_rms_deg: heading,
+        fixes: samples.len(),
+    })
+}
+
+/// The wind-triangle fit of our heading and of the onboard one, over the same fixes (those
+/// moving faster than 5 m/s with airspeed, our estimate running and an onboard attitude);
+/// `None` without airspeed or with too few such fixes.
+pub fn heading_check(log: &FlightLog, run: &RunResult) -> Option<HeadingCheck> {
+    let mut ours = Vec::new();
+    let mut onboard = Vec::new();
+    for g in log.gps.iter().filter(|g| g.fix_3d) {
+        let [Some(vn), Some(ve), _] = g.velocity_ned_m_s else {
+            continue;
+        };
+        if vn.hypot(ve) < 5.0 {
+            continue;
+        }
+        let (Some(va), Some(m)) = (airspeed_at(log, g.t_us), ours_at(&run.rows, g.t_us)) else {
+            continue;
+        };
+        let Some(o) = onboard_attitude_at(log, g.t_us) else {
+            continue;
+        };
+        ours.push((vn, ve, va, m.attitude.euler_angles().2));
+        onboard.push((vn, ve, va, o.euler_angles().2));
+    }
+    Some(HeadingCheck {
+        ours: fit(&ours)?,
+        onboard: fit(&onboard),
+    })
+}

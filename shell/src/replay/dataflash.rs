@@ -280,7 +280,13 @@ fn assemble(rows: &HashMap<String, Vec<Row>>, warnings: Vec<String>) -> FlightLo
         .iter()
         .filter(first_instance)
         .filter_map(|r| {
-            let t_us = time_us(r)?;
+            // Logs of 2014-15 have GPS time of week in TimeMS and the boot time in T.
+            let t_us = match get(r, "T") {
+                Some(ms) if ms >= 0.0 && ms < 1.8e16 => (ms * 1000.0) as u64,
+                _ => get(r, "TimeUS")
+                    .filter(|t| *t >= 0.0 && *t < 1.8e19)
+                    .map(|t| t as u64)?,
+            };
             let speed = get(r, "Spd");
             let course = get(r, "GCrs").map(f64::to_radians);
             let (vn, ve) = match (speed, course) {

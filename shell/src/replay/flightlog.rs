@@ -143,6 +143,19 @@ pub fn quaternion_from_euler(roll: f64, pitch: f64, yaw: f64) -> [f64; 4] {
 
 /// One line naming the file and the byte offset, as every reader error reads.
 pub fn error_at(path: &str, offset: usize, what: impl core::fmt::Display) -> String {
+    // The parser's text may quote bytes of the file: control characters are escaped so the
+    // message stays one line.
+    let what: String = what
+        .to_string()
+        .chars()
+        .flat_map(|c| {
+            if c.is_control() {
+                c.escape_default().collect::<Vec<_>>()
+            } else {
+                vec![c]
+            }
+        })
+        .collect();
     format!("{path}: byte {offset}: {what}")
 }
 

@@ -104,6 +104,8 @@ pub struct ReplayReport {
     pub estimator: EstimatorSummary,
     /// Our estimate minus the onboard estimate: agreement, not accuracy.
     pub agreement: Agreement,
+    /// Which heading the airspeed and GPS velocity support (logs with airspeed).
+    pub heading_check: Option<agreement::HeadingCheck>,
     pub notes: Vec<String>,
 }
 
@@ -139,6 +141,7 @@ pub fn replay(
     }
     let result = run::run(log, options).map_err(|e| format!("{path}: {e}"))?;
     let (agreement, series) = agreement::compare(log, &result);
+    let heading_check = agreement::heading_check(log, &result);
     let c = result.counters;
     let duration_s = match (log.imu.first(), log.imu.last()) {
         (Some(a), Some(b)) => b.t_us.saturating_sub(a.t_us) as f64 * 1e-6,
@@ -209,6 +212,7 @@ pub fn replay(
             stayed_finite_without_reset: result.non_finite_estimates == 0 && c.resets == 0,
         },
         agreement,
+        heading_check,
         notes,
     };
     Ok((report, series))
@@ -336,6 +340,29 @@ pub fn render(r: &ReplayReport) -> String {
     for name in agreement::PHASES {
         if let Some(p) = r.agreement.phases.get(name) {
             line(name, p);
+        }
+    }
+    if let Some(h) = &r.heading_check {
+        let _ = writeln!(
+            s,
+            "heading check (wind triangle: GPS velocity = k * airspeed along the heading + a constant wind):"
+        );
+        let fits =
+            std::iter::once(("ours", Some(h.ours))).chain(std::iter::once(("onboard", h.onboard)));
+        for (name, f) in fits {
+            if let Some(f) = f {
+                let _ = writeln!(
+                    s,
+                    "  {name:<8} residual {:.2} m/s, heading vs air track {:.1} deg RMS \
+                     (k {:.2}, wind N {:.1} E {:.1} m/s, {} fixes)",
+                    f.residual_rms_m_s,
+                    f.heading_vs_air_track_rms_deg,
+                    f.airspeed_scale,
+                    f.wind_north_m_s,
+                    f.wind_east_m_s,
+                    f.fixes
+                );
+            }
         }
     }
     for n in &r.notes {

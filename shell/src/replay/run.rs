@@ -39,6 +39,10 @@ const SHIFT_US: u64 = FRAME_US;
 /// also when replay's warm start happens, if the alignment has not finished by then.
 const LAUNCH_SPEED_M_S: f64 = 5.0;
 
+/// The longest log replay runs: a day, so a damaged time stamp is an error, not a run of
+/// billions of empty frames.
+const MAX_SPAN_US: u64 = 24 * 3600 * 1_000_000;
+
 /// How the estimator starts.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
 #[serde(rename_all = "kebab-case")]
@@ -263,9 +267,10 @@ impl Task for Estimator<'_> {
                     self.started = Some(StartInfo {
                         how: "onboard-attitude",
                         at_s: (cx.now_ns / 1000).saturating_sub(SHIFT_US) as f64 * 1e-6,
-                        why: "the estimator had not aligned (it needs 10 s at rest) when the \
-                              GPS first saw 5 m/s: warm start from the onboard attitude and \
-                              the GPS velocity, zero biases"
+                        why: "the estimator had not aligned (it needs 10 s at rest) by launch \
+                              (the first GPS speed of 5 m/s; with --start onboard on a log \
+                              that never moves, the first fix): warm start from the onboard \
+                              attitude and the GPS velocity, zero biases"
                             .into(),
                     });
                 }
@@ -327,6 +332,12 @@ pub fn run(log: &FlightLog, options: RunOptions) -> Result<RunResult, String> {
         return Err("the log has no IMU records replay can use".into());
     };
     let t0_us = first.t_us.saturating_sub((first.dt_s * 1e6) as u64);
+    if last.t_us.saturating_sub(t0_us) > MAX_SPAN_US {
+        return Err(format!(
+            "the IMU records span {:.1} h: a damaged time stamp? (replay takes at most 24 h)",
+            last.t_us.saturating_sub(t0_us) as f64 / 3.6e9
+        ));
+    }
     let frames = (last.t_us.saturating_sub(t0_us) + SHIFT_US) / FRAME_US + 1;
 
     let mut config = EstimatorConfig::default();
@@ -343,11 +354,21 @@ pub fn run(log: &FlightLog, options: RunOptions) -> Result<RunResult, String> {
     }
 
     // The warm start: at the first fix at launch speed, from the onboard attitude then.
-    let launch = log.gps.iter().find(|g| {
-        g.fix_3d
-            && matches!(g.velocity_ned_m_s, [Some(n), Some(e), _] if n.hypot(e) >= LAUNCH_SPEED_M_S)
-            && g.t_us >= t0_us
-    });
+    let launch = log
+        .gps
+        .iter()
+        .find(|g| {
+            g.fix_3d
+                && matches!(g.velocity_ned_m_s, [Some(n), Some(e), _] if n.hypot(e) >= LAUNCH_SPEED_M_S)
+                && g.t_us >= t0_us
+        })
+        .or_else(|| {
+            // Asked for a warm start on a log that never moves (a ground test): the first
+            // fix will do, as the heading then comes from the onboard attitude anyway.
+            (options.start == StartMode::Onboard)
+                .then(|| log.gps.iter().find(|g| g.fix_3d && g.t_us >= t0_us))
+                .flatten()
+        });
     let warm_start = match (options.start, launch) {
         (StartMode::Align, _) | (_, None) => None,
         (StartMode::Auto | StartMode::Onboard, Some(g)) => {

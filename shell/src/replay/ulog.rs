@@ -316,7 +316,11 @@ fn read_imu(all: &HashMap<String, Vec<Row>>, log: &mut FlightLog) {
                     "accelerometer_m_s2[2]",
                 ]
                 .map(|n| get(r, n));
-                let interval = get(r, "gyro_integral_dt").map(|us| us * 1e-6);
+                // Current firmware logs the interval as integer microseconds, firmware of
+                // 2016-17 as float seconds: no real IMU interval is a microsecond long, so a
+                // value below 1 is seconds.
+                let interval =
+                    get(r, "gyro_integral_dt").map(|v| if v < 1.0 { v } else { v * 1e-6 });
                 Some((
                     time_us(r)?,
                     interval,
