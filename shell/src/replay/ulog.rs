@@ -219,6 +219,7 @@ pub fn read(path: &str, bytes: &[u8]) -> Result<FlightLog, String> {
             .consume_bytes(header)
             .map_err(|e| error_at(path, 0, e))?;
         let mut at = 16usize;
+        let mut guard = Guard::default();
         while at < bytes.len() {
             let Some(&[lo, hi, _]) = bytes.get(at..at + 3) else {
                 warnings.push(error_at(
@@ -233,7 +234,10 @@ pub fn read(path: &str, bytes: &[u8]) -> Result<FlightLog, String> {
                 warnings.push(error_at(path, at, "truncated last message: ignored"));
                 break;
             };
-            if let Err(e) = parser.consume_bytes(message) {
+            if let Err(e) = guard
+                .check(message)
+                .and_then(|()| parser.consume_bytes(message).map_err(|e| e.to_string()))
+            {
                 // A broken record inside the data section after good data: keep what was
                 // read (as PX4's tools do) but say where it stopped; before the data,
                 // nothing is usable.
@@ -247,6 +251,113 @@ pub fn read(path: &str, bytes: &[u8]) -> Result<FlightLog, String> {
         }
     }
     Ok(assemble(&collected.rows, warnings))
+}
+
+/// What `px4-ulog` 0.6.1 does not check before it indexes, checked here first, so a damaged
+/// file is an error, not a panic (found by the `flight_log` fuzz target):
+/// - an info (`I`), parameter (`P`) or add-logged (`A`) message shorter than its own key
+///   length or fixed fields;
+/// - message formats (`F`) that nest other formats in arrays so deep that flattening them
+///   would take billions of steps (a format of zero fields repeated 65535 × 65535 times).
+#[derive(Default)]
+struct Guard {
+    /// Each format's fields: (type name, repeat count).
+    formats: HashMap<String, Vec<(String, u64)>>,
+    /// The formats were sized (at the first message after the definitions).
+    sized: bool,
+}
+
+/// Flattening work a log may ask for: far beyond any real log's few thousand fields.
+const MAX_FLATTENED_FIELDS: u64 = 1_000_000;
+
+const PRIMITIVES: &[&str] = &[
+    "int8_t", "uint8_t", "int16_t", "uint16_t", "int32_t", "uint32_t", "int64_t", "uint64_t",
+    "float", "double", "bool", "char",
+];
+
+impl Guard {
+    fn check(&mut self, message: &[u8]) -> Result<(), String> {
+        let kind = message.get(2).copied().unwrap_or_default();
+        let payload = message.get(3..).unwrap_or_default();
+        let first = payload.first().copied().map(usize::from);
+        let short = match kind {
+            b'I' => first.is_none_or(|k| payload.len() < 1 + k),
+            b'P' => first.is_none_or(|k| payload.len() < 1 + k),
+            b'A' => payload.len() < 3,
+            _ => false,
+        };
+        if short {
+            return Err(format!(
+                "'{}' message of {} bytes is shorter than its fields",
+                char::from(kind),
+                payload.len()
+            ));
+        }
+        if kind == b'F' {
+            self.add_format(payload);
+        } else if !self.sized && matches!(kind, b'A' | b'D' | b'L' | b'C' | b'O' | b'R' | b'S') {
+            self.sized = true;
+            let mut memo = HashMap::new();
+            let mut total = 0u64;
+            for name in self.formats.keys() {
+                total = total.saturating_add(self.cost(name, &mut memo, 0));
+            }
+            if total > MAX_FLATTENED_FIELDS {
+                return Err(format!(
+                    "the message formats expand to more than {MAX_FLATTENED_FIELDS} fields"
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    fn add_format(&mut self, payload: &[u8]) {
+        let Ok(text) = std::str::from_utf8(payload) else {
+            return;
+        };
+        let Some((name, fields)) = text.split_once(':') else {
+            return;
+        };
+        let fields = fields
+            .split(';')
+            .filter_map(|f| {
+                let (ty, _) = f.split_once(' ')?;
+                Some(match ty.split_once('[') {
+                    Some((base, n)) => (
+                        base.to_string(),
+                        n.trim_end_matches(']').parse::<u64>().unwrap_or(u64::MAX),
+                    ),
+                    None => (ty.to_string(), 1),
+                })
+            })
+            .collect();
+        self.formats.insert(name.to_string(), fields);
+    }
+
+    /// Steps to flatten `name` (each field visit counts one, arrays times their length);
+    /// saturating, and a reference cycle or depth past 64 counts as too much.
+    fn cost(&self, name: &str, memo: &mut HashMap<String, u64>, depth: u32) -> u64 {
+        if let Some(&c) = memo.get(name) {
+            return c;
+        }
+        if depth > 64 {
+            return u64::MAX;
+        }
+        let Some(fields) = self.formats.get(name) else {
+            return 1;
+        };
+        let mut total = 1u64;
+        for (ty, n) in fields {
+            let each = if PRIMITIVES.contains(&ty.as_str()) {
+                1
+            } else {
+                self.cost(ty, memo, depth + 1)
+            };
+            total = total.saturating_add(n.saturating_mul(each.max(1)));
+        }
+        memo.insert(name.to_string(), total);
+        total
+    }
 }
 
 fn rows<'a>(all: &'a HashMap<String, Vec<Row>>, topic: &str) -> &'a [Row] {
