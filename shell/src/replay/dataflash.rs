@@ -12,7 +12,7 @@
 //! Messages used (first instance only): `IMU` (rates, held over the interval since the
 //! previous sample), or `IMT` when logged (delta angles and velocities with their own
 //! intervals); `GPS` (+ `GPA` accuracies when logged); `ATT` (onboard attitude); `POS`
-//! (onboard position); `XKF1`/`NKF1` (onboard velocity); `ARSP` (airspeed); `MAG` (counted).
+//! (onboard position); `XKF1`/`NKF1`/`EKF1` (onboard velocity); `ARSP` (airspeed); `MAG` (counted).
 
 use std::collections::HashMap;
 
@@ -84,7 +84,7 @@ fn text(b: &[u8]) -> String {
 
 /// The messages replay reads, and the columns it takes from each.
 const WANTED: &[&str] = &[
-    "IMU", "IMT", "GPS", "GPA", "ATT", "POS", "XKF1", "NKF1", "ARSP", "MAG",
+    "IMU", "IMT", "GPS", "GPA", "ATT", "POS", "XKF1", "NKF1", "EKF1", "ARSP", "MAG",
 ];
 
 type Row = HashMap<String, f64>;
@@ -336,11 +336,12 @@ fn assemble(rows: &HashMap<String, Vec<Row>>, warnings: Vec<String>) -> FlightLo
             })
         })
         .collect();
-    let ekf = if list(rows, "XKF1").is_empty() {
-        "NKF1"
-    } else {
-        "XKF1"
-    };
+    // The EKF's first core, by the name of its firmware's time: XKF1 (EKF3), NKF1 (EKF2),
+    // EKF1 (the EKF of 2014-15).
+    let ekf = ["XKF1", "NKF1", "EKF1"]
+        .into_iter()
+        .find(|n| !list(rows, n).is_empty())
+        .unwrap_or("XKF1");
     log.onboard_nav.extend(
         list(rows, ekf)
             .iter()
