@@ -224,7 +224,7 @@ fn ours_at(rows: &[EstimateRow], t_us: u64) -> Option<Ours> {
     let (qa, qb) = (q(a), q(b));
     let qb = if qa.dot(&qb) < 0.0 { -qb } else { qb };
     let qm = qa * (1.0 - f) + qb * f;
-    if !(qm.norm() > 1e-6) {
+    if qm.norm().partial_cmp(&1e-6) != Some(std::cmp::Ordering::Greater) {
         return None;
     }
     let v3 = |x: [f32; 3]| Vector3::new(f64::from(x[0]), f64::from(x[1]), f64::from(x[2]));

@@ -215,7 +215,7 @@ fn get(row: &Row, name: &str) -> Option<f64> {
 fn time_us(row: &Row) -> Option<u64> {
     get(row, "TimeUS")
         .or_else(|| get(row, "TimeMS").map(|ms| ms * 1000.0))
-        .filter(|t| *t >= 0.0 && *t < 1.8e19)
+        .filter(|t| (0.0..1.8e19).contains(t))
         .map(|t| t as u64)
 }
 
@@ -282,9 +282,9 @@ fn assemble(rows: &HashMap<String, Vec<Row>>, warnings: Vec<String>) -> FlightLo
         .filter_map(|r| {
             // Logs of 2014-15 have GPS time of week in TimeMS and the boot time in T.
             let t_us = match get(r, "T") {
-                Some(ms) if ms >= 0.0 && ms < 1.8e16 => (ms * 1000.0) as u64,
+                Some(ms) if (0.0..1.8e16).contains(&ms) => (ms * 1000.0) as u64,
                 _ => get(r, "TimeUS")
-                    .filter(|t| *t >= 0.0 && *t < 1.8e19)
+                    .filter(|t| (0.0..1.8e19).contains(t))
                     .map(|t| t as u64)?,
             };
             let speed = get(r, "Spd");

@@ -99,15 +99,16 @@ impl FlightLog {
     }
 }
 
+/// One IMU sample as a log of rates has it: time (µs), its own interval (s) if the log
+/// gives one, rates (rad/s), specific force (m/s²).
+pub type RateSample = (u64, Option<f64>, [f64; 3], [f64; 3]);
+
 /// Turns rate samples (rad/s, m/s²) stamped at `t_us` into increments over the interval since
 /// the previous sample. `interval_us` gives a sample's own interval when the log has one
 /// (PX4's `gyro_integral_dt`); without it the gap to the previous sample is used, and a gap
 /// longer than `max_gap_s` (a logging dropout) gives the sample no interval at all, so a
 /// dropout is a gap in the IMU, not a 2-second sample.
-pub fn rates_to_increments(
-    samples: &[(u64, Option<f64>, [f64; 3], [f64; 3])],
-    max_gap_s: f64,
-) -> Vec<ImuRecord> {
+pub fn rates_to_increments(samples: &[RateSample], max_gap_s: f64) -> Vec<ImuRecord> {
     let mut out = Vec::with_capacity(samples.len());
     let mut previous: Option<u64> = None;
     for &(t_us, interval_s, rate, force) in samples {
@@ -181,7 +182,7 @@ fn position_velocity(gps: &[GpsRecord], i: usize) -> Option<[f64; 2]> {
     let a = gps.get(i.checked_sub(1)?)?;
     let b = gps.get(i + 1)?;
     let dt = b.t_us.checked_sub(a.t_us)? as f64 * 1e-6;
-    if !(a.fix_3d && b.fix_3d) || !(0.05..=1.0).contains(&dt) {
+    if !(a.fix_3d && b.fix_3d && (0.05..=1.0).contains(&dt)) {
         return None;
     }
     // Metres per degree on the sphere: plenty over the tens of metres between fixes.

@@ -163,7 +163,8 @@ fn field(data: &[u8], ty: &FlattenedFieldType, offset: usize) -> Option<f64> {
 impl Collected {
     fn take(&mut self, msg: &DataMessage<'_>) {
         let id = msg.msg_id;
-        if !self.formats.contains_key(&id) {
+        // A message id's format is fixed for the file: its fields are looked up once.
+        let (name, multi, fields) = self.formats.entry(id).or_insert_with(|| {
             let format = msg.flattened_format;
             let fields = format
                 .field_iter()
@@ -174,18 +175,12 @@ impl Collected {
                     )
                 })
                 .collect();
-            self.formats.insert(
-                id,
-                (
-                    format.message_name().to_string(),
-                    msg.multi_id.value(),
-                    fields,
-                ),
-            );
-        }
-        let Some((name, multi, fields)) = self.formats.get(&id) else {
-            return;
-        };
+            (
+                format.message_name().to_string(),
+                msg.multi_id.value(),
+                fields,
+            )
+        });
         if *multi != 0 {
             return;
         }
@@ -370,7 +365,7 @@ fn get(row: &Row, name: &str) -> Option<f64> {
 
 fn time_us(row: &Row) -> Option<u64> {
     get(row, "timestamp")
-        .filter(|&t| t >= 0.0 && t < 1.8e19)
+        .filter(|t| (0.0..1.8e19).contains(t))
         .map(|t| t as u64)
 }
 
