@@ -62,6 +62,29 @@ pub enum Command {
     /// scenarios/faults.toml): memory and open files must stay flat and the counters agree.
     /// Exit 1 when a check fails.
     Soak(SoakArgs),
+    /// Run skyframe's estimator over a real flight log (PX4 .ulg, ArduPilot .bin) through the
+    /// shipped frame table and compare it with the onboard estimate in the same log
+    /// (agreement, not accuracy: the onboard estimator is not truth). docs/replay.md.
+    Replay(ReplayArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct ReplayArgs {
+    /// The flight log: PX4 ULog (.ulg) or ArduPilot DataFlash (.bin), told apart by content.
+    pub log: PathBuf,
+    /// Print the report as one JSON object.
+    #[arg(long)]
+    pub json: bool,
+    /// Write figures (attitude.png, attitude_difference.png) into this directory.
+    #[arg(long, value_name = "DIR")]
+    pub plot: Option<PathBuf>,
+    /// How the estimator starts: its own alignment, or a warm start from the onboard
+    /// attitude at launch when the log never rests for 10 s (auto).
+    #[arg(long, value_enum, default_value = "auto")]
+    pub start: crate::replay::StartMode,
+    /// The GPS latency the estimator assumes, in ms, 0..=2000 (default: its configuration's).
+    #[arg(long, value_name = "MS", value_parser = parse_latency_ms)]
+    pub gps_latency_ms: Option<f64>,
 }
 
 #[derive(Args, Debug, Clone)]
@@ -257,6 +280,10 @@ pub struct SoakArgs {
     pub keep_logs: bool,
     #[command(flatten)]
     pub flight: FlightArgs,
+}
+
+fn parse_latency_ms(text: &str) -> Result<f64, String> {
+    number_within(text, 0.0, 2000.0, "milliseconds")
 }
 
 fn parse_hours(text: &str) -> Result<f64, String> {
@@ -535,6 +562,30 @@ fn run<P: Platform>(platform: &P, command: Command) -> Result<ExitCode, String> 
             Ok(logging_lost_exit(&report))
         }
         Command::Soak(args) => soak(platform, args),
+        Command::Replay(args) => {
+            let options = crate::replay::RunOptions {
+                start: args.start,
+                gps_latency_ms: args.gps_latency_ms,
+                gps_velocity_sd_m_s: None,
+            };
+            let (report, series, _) = crate::replay::replay_file(&args.log, options)?;
+            if let Some(dir) = &args.plot {
+                let title = args
+                    .log
+                    .file_name()
+                    .map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+                for path in crate::replay::plot::write(dir, &title, &series)? {
+                    eprintln!("wrote {path}");
+                }
+            }
+            if args.json {
+                let text = serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?;
+                println!("{text}");
+            } else {
+                print!("{}", crate::replay::render(&report));
+            }
+            Ok(ExitCode::SUCCESS)
+        }
         Command::Score(args) => {
             if !args.flight_dir.is_dir() {
                 return Err(format!(

@@ -19,6 +19,7 @@ pub mod link;
 pub mod logwriter;
 pub mod mission;
 pub mod platform;
+pub mod replay;
 pub mod ring;
 pub mod score;
 pub mod serial;

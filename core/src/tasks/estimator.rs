@@ -95,6 +95,13 @@ impl<'a, S: RecordSink> EstimatorTask<'a, S> {
         &self.estimator
     }
 
+    /// The filter itself, for a warm start ([`Estimator::start_from`]) by a host that knows
+    /// the state better than an alignment could (`skyframe replay` of a log that starts in
+    /// motion).
+    pub fn estimator_mut(&mut self) -> &mut Estimator {
+        &mut self.estimator
+    }
+
     /// Steps that found no fresh IMU sample.
     pub fn imu_missed(&self) -> u32 {
         self.imu_missed
