@@ -1,4 +1,5 @@
-//! Distribution summaries for timing figures.
+//! Distribution summaries: timing figures, and errors against a reference (the score against
+//! the simulator's truth, replay's agreement with an onboard estimate).
 
 use serde::Serialize;
 
@@ -99,5 +100,33 @@ mod tests {
         let d = Distribution::of(&mut [7]);
         assert_eq!((d.p50, d.p999, d.max), (7.0, 7.0, 7.0));
         assert_eq!(Distribution::of(&mut []).count, 0);
+    }
+}
+
+/// Root-mean-square and largest magnitude of a series of errors; non-finite errors are left
+/// out (a missing estimate is not an error of zero).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct ErrorStats {
+    pub n: u64,
+    pub sum_sq: f64,
+    pub max_abs: f64,
+}
+
+impl ErrorStats {
+    pub fn push(&mut self, e: f64) {
+        if e.is_finite() {
+            self.n += 1;
+            self.sum_sq += e * e;
+            self.max_abs = self.max_abs.max(e.abs());
+        }
+    }
+
+    /// NaN with no samples.
+    pub fn rms(&self) -> f64 {
+        if self.n == 0 {
+            f64::NAN
+        } else {
+            (self.sum_sq / self.n as f64).sqrt()
+        }
     }
 }

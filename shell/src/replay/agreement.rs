@@ -10,6 +10,7 @@
 //! - `climb` / `descent`: vertical speed beyond ±1.5 m/s;
 //! - `cruise`: the rest.
 
+use crate::stats::ErrorStats;
 use std::collections::BTreeMap;
 
 use serde::Serialize;
@@ -28,30 +29,6 @@ const CLIMB_M_S: f64 = 1.5;
 /// (the rotation angle still is).
 const EULER_MAX_PITCH_RAD: f64 = 60.0 * std::f64::consts::PI / 180.0;
 
-#[derive(Clone, Copy, Debug, Default)]
-struct Stats {
-    n: u64,
-    sum_sq: f64,
-    max_abs: f64,
-}
-
-impl Stats {
-    fn push(&mut self, e: f64) {
-        if e.is_finite() {
-            self.n += 1;
-            self.sum_sq += e * e;
-            self.max_abs = self.max_abs.max(e.abs());
-        }
-    }
-    fn rms(&self) -> f64 {
-        if self.n == 0 {
-            f64::NAN
-        } else {
-            (self.sum_sq / self.n as f64).sqrt()
-        }
-    }
-}
-
 /// RMS and largest difference; NaN (JSON null) with no samples.
 #[derive(Clone, Copy, Debug, Serialize)]
 pub struct Difference {
@@ -60,8 +37,8 @@ pub struct Difference {
     pub samples: u64,
 }
 
-impl From<Stats> for Difference {
-    fn from(s: Stats) -> Self {
+impl From<ErrorStats> for Difference {
+    fn from(s: ErrorStats) -> Self {
         Self {
             rms: s.rms(),
             max: if s.n == 0 { f64::NAN } else { s.max_abs },
@@ -73,15 +50,15 @@ impl From<Stats> for Difference {
 #[derive(Clone, Copy, Debug, Default)]
 struct Accumulator {
     seconds: f64,
-    roll: Stats,
-    pitch: Stats,
-    yaw: Stats,
-    rotation: Stats,
-    horizontal: Stats,
-    vertical: Stats,
-    velocity: Stats,
-    gps_horizontal: Stats,
-    gps_vertical: Stats,
+    roll: ErrorStats,
+    pitch: ErrorStats,
+    yaw: ErrorStats,
+    rotation: ErrorStats,
+    horizontal: ErrorStats,
+    vertical: ErrorStats,
+    velocity: ErrorStats,
+    gps_horizontal: ErrorStats,
+    gps_vertical: ErrorStats,
 }
 
 /// The agreement over one phase (or the whole run). Angles in degrees, positions in metres,

@@ -17,6 +17,7 @@ mod reference;
 mod replay;
 mod truth;
 
+use crate::stats::ErrorStats;
 use std::path::Path;
 
 use serde::Serialize;
@@ -37,31 +38,6 @@ pub struct ScoreSetup<'a> {
     pub estimator_budget_ns: u64,
     /// Run the `ahrs` package's filters on the same IMU data (needs python3 with ahrs).
     pub reference_filters: bool,
-}
-
-/// Root-mean-square and largest magnitude of a series of errors.
-#[derive(Clone, Copy, Debug, Default)]
-struct ErrorStats {
-    n: u64,
-    sum_sq: f64,
-    max_abs: f64,
-}
-
-impl ErrorStats {
-    fn push(&mut self, e: f64) {
-        if e.is_finite() {
-            self.n += 1;
-            self.sum_sq += e * e;
-            self.max_abs = self.max_abs.max(e.abs());
-        }
-    }
-    fn rms(&self) -> f64 {
-        if self.n == 0 {
-            f64::NAN
-        } else {
-            (self.sum_sq / self.n as f64).sqrt()
-        }
-    }
 }
 
 /// Roll and pitch errors of one filter (degrees).
