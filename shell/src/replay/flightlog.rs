@@ -129,18 +129,8 @@ pub fn rates_to_increments(samples: &[RateSample], max_gap_s: f64) -> Vec<ImuRec
     out
 }
 
-/// The 3-2-1 quaternion (body → NED) of roll, pitch, yaw in radians.
-pub fn quaternion_from_euler(roll: f64, pitch: f64, yaw: f64) -> [f64; 4] {
-    let (sr, cr) = (roll * 0.5).sin_cos();
-    let (sp, cp) = (pitch * 0.5).sin_cos();
-    let (sy, cy) = (yaw * 0.5).sin_cos();
-    [
-        cr * cp * cy + sr * sp * sy,
-        sr * cp * cy - cr * sp * sy,
-        cr * sp * cy + sr * cp * sy,
-        cr * cp * sy - sr * sp * cy,
-    ]
-}
+/// The 3-2-1 quaternion (body → NED) of roll, pitch, yaw in radians: the simulator's.
+pub use skyframe_sim::plant::math::quat_from_euler as quaternion_from_euler;
 
 /// One line naming the file and the byte offset, as every reader error reads.
 pub fn error_at(path: &str, offset: usize, what: impl core::fmt::Display) -> String {

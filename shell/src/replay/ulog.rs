@@ -40,6 +40,26 @@ struct Collected {
 /// One data message's fields that replay reads, by name.
 type Row = HashMap<&'static str, f64>;
 
+/// A GPS fix's fields, under either of PX4's topic names (older and newer field names both).
+const GPS_FIELDS: &[&str] = &[
+    "timestamp",
+    "lat",
+    "lon",
+    "alt",
+    "latitude_deg",
+    "longitude_deg",
+    "altitude_msl_m",
+    "vel_n_m_s",
+    "vel_e_m_s",
+    "vel_d_m_s",
+    "vel_ned_valid",
+    "fix_type",
+    "eph",
+    "epv",
+    "hdop",
+    "satellites_used",
+];
+
 const WANTED: &[(&str, &[&str])] = &[
     (
         "sensor_combined",
@@ -63,48 +83,8 @@ const WANTED: &[(&str, &[&str])] = &[
         "sensor_accel",
         &["timestamp", "timestamp_sample", "x", "y", "z"],
     ),
-    (
-        "vehicle_gps_position",
-        &[
-            "timestamp",
-            "lat",
-            "lon",
-            "alt",
-            "latitude_deg",
-            "longitude_deg",
-            "altitude_msl_m",
-            "vel_n_m_s",
-            "vel_e_m_s",
-            "vel_d_m_s",
-            "vel_ned_valid",
-            "fix_type",
-            "eph",
-            "epv",
-            "hdop",
-            "satellites_used",
-        ],
-    ),
-    (
-        "sensor_gps",
-        &[
-            "timestamp",
-            "lat",
-            "lon",
-            "alt",
-            "latitude_deg",
-            "longitude_deg",
-            "altitude_msl_m",
-            "vel_n_m_s",
-            "vel_e_m_s",
-            "vel_d_m_s",
-            "vel_ned_valid",
-            "fix_type",
-            "eph",
-            "epv",
-            "hdop",
-            "satellites_used",
-        ],
-    ),
+    ("vehicle_gps_position", GPS_FIELDS),
+    ("sensor_gps", GPS_FIELDS),
     (
         "vehicle_attitude",
         &["timestamp", "q[0]", "q[1]", "q[2]", "q[3]"],
