@@ -29,6 +29,15 @@ impl<T> Sink<T> for Producer<'_, T> {
 /// whole record or nothing, and never waits.
 pub trait RecordSink {
     fn push_record(&mut self, record: &[u8]) -> bool;
+
+    /// A declared record's format, after its declaration went into the log: for a sink that
+    /// also shows the task's data elsewhere (the telemetry [`Tap`](crate::tasks::tap::Tap)).
+    fn declared(&mut self, _index: u8, _format: &crate::logfmt::LogFormat) {}
+
+    /// The typed values of the Data Block the log has just taken, as the task declared them:
+    /// what the telemetry tap keeps, so nothing re-parses the bytes.
+    fn logged(&mut self, _index: u8, _time: crate::logfmt::Time, _values: &[crate::logfmt::Value]) {
+    }
 }
 
 /// The sink of a task built without a log (unit tests, tools): takes every record, keeps none.

@@ -212,39 +212,44 @@ impl ReplayGuard {
     }
 }
 
-/// The link's counters, sent in every executive status. Saturating `u32`s.
-///
-/// The command side counts every datagram the gate sees: `received` equals `accepted` plus
-/// the sum of the rejection counters.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct LinkCounters {
-    pub received: u32,
-    pub accepted: u32,
-    pub bad_crc: u32,
-    /// Bad length, magic, version or flags, a payload that does not decode, or not a
-    /// command at all.
-    pub malformed: u32,
-    pub wrong_vehicle: u32,
-    pub unsigned: u32,
-    pub bad_signature: u32,
-    /// Authentic, but from another run of the vehicle (a recording replayed, or a ground
-    /// station that has not heard the vehicle since it restarted).
-    pub wrong_run: u32,
-    /// Duplicate or too old for the sender's replay window.
-    pub replayed: u32,
-    /// A new sender when every replay window is taken.
-    pub too_many_senders: u32,
-    pub out_of_range: u32,
-    pub unknown_param: u32,
-    pub wrong_type: u32,
-    /// Telemetry datagrams handed to the socket, and ones it refused (counted by the
-    /// sender, not the gate).
-    pub telemetry_sent: u32,
-    pub telemetry_send_failed: u32,
-    /// Dropped unread by the shell because their source sent more than its share
-    /// ([`crate::link::ingress`]): a flood, counted, never queued.
-    pub rate_limited: u32,
+crate::log_record! {
+    /// The link's counters, sent in every executive status and logged (`link.bin`) once a
+    /// second and at the end, so what was refused and why is in the flight's log, not only
+    /// on the ground. Saturating `u32`s; the field order is the wire order
+    /// (`docs/link-protocol.md`) and the log's column order.
+    ///
+    /// The command side counts every datagram the gate sees: `received` equals `accepted`
+    /// plus the sum of the rejection counters.
+    #[derive(Eq)]
+    #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+    pub struct LinkCounters {
+        received: u32 = "%u",
+        accepted: u32 = "%u",
+        bad_crc: u32 = "%u",
+        /// Bad length, magic, version or flags, a payload that does not decode, or not a
+        /// command at all.
+        malformed: u32 = "%u",
+        wrong_vehicle: u32 = "%u",
+        unsigned: u32 = "%u",
+        bad_signature: u32 = "%u",
+        /// Authentic, but from another run of the vehicle (a recording replayed, or a ground
+        /// station that has not heard the vehicle since it restarted).
+        wrong_run: u32 = "%u",
+        /// Duplicate or too old for the sender's replay window.
+        replayed: u32 = "%u",
+        /// A new sender when every replay window is taken.
+        too_many_senders: u32 = "%u",
+        out_of_range: u32 = "%u",
+        unknown_param: u32 = "%u",
+        wrong_type: u32 = "%u",
+        /// Telemetry datagrams handed to the socket, and ones it refused (counted by the
+        /// sender, not the gate).
+        telemetry_sent: u32 = "%u",
+        telemetry_send_failed: u32 = "%u",
+        /// Dropped unread by the shell because their source sent more than its share
+        /// ([`crate::link::ingress`]): a flood, counted, never queued.
+        rate_limited: u32 = "%u",
+    }
 }
 
 /// Number of `u32` counters on the wire.

@@ -12,6 +12,7 @@
 //! (`skyframe-log`), the encoders for tasks.
 
 pub mod csv;
+pub mod declare;
 pub mod format;
 pub mod frame_log;
 pub mod printf;
@@ -22,6 +23,7 @@ pub use csv::{
     write_byte_array_line, write_columns_line, write_data_line, write_format_line, write_header,
     write_values_line,
 };
+pub use declare::{LogField, LogRecord, MAX_RECORD_FIELDS, encode_record, record_values};
 pub use format::{Conversion, Field, FieldType, Flags, Format, FormatError, MAX_FIELDS};
 pub use frame_log::{
     FrameLogFormat, decode_frame_record, encode_frame_record, frame_log_task_names,

@@ -174,7 +174,7 @@ fn write_at(buf: &mut [u8], offset: usize, bytes: &[u8]) -> Result<(), EncodeErr
     Ok(())
 }
 
-fn time_bytes(t_ns: u64) -> Result<[u8; TIME_LEN], EncodeError> {
+pub(crate) fn time_bytes(t_ns: u64) -> Result<[u8; TIME_LEN], EncodeError> {
     Ok(Time::from_ns(t_ns)
         .ok_or(EncodeError::TimeOutOfRange)?
         .to_bytes())
@@ -186,6 +186,27 @@ fn encode_marker(buf: &mut [u8], kind: u8, t_ns: u64) -> Result<usize, EncodeErr
     write_header(buf, kind, 0, 0, total)?;
     write_at(buf, HEADER_LEN, &time)?;
     Ok(total)
+}
+
+/// The header and TIME of a Data Block whose `data_len` bytes of data are already in place
+/// after them (the declared records' encoder writes the values first).
+pub(crate) fn encode_data_header(
+    buf: &mut [u8],
+    index: u8,
+    time: &[u8; TIME_LEN],
+    data_len: usize,
+) -> Result<(), EncodeError> {
+    if index == 0 {
+        return Err(EncodeError::ZeroIndex);
+    }
+    write_header(
+        buf,
+        kind::DATA_BLOCK,
+        index,
+        data_len,
+        HEADER_LEN + TIME_LEN + data_len,
+    )?;
+    write_at(buf, HEADER_LEN, time)
 }
 
 /// Begin Data: a task started logging at `t_ns`. Returns the bytes written (12).

@@ -25,22 +25,66 @@ use crate::estimation::Estimate;
 use crate::executive::{Task, TaskContext, TaskFault};
 use crate::link::messages::{FlightMode, Value};
 use crate::link::params::{DefineError, ParamTable};
-use crate::logfmt::format::Format;
-use crate::logfmt::record::LogFormat;
 use core::cell::RefCell;
 
-pub const CONTROL_LOG: LogFormat = LogFormat::new(
-    "%hhu,%hhu,%.4f,%.4f,%.4f,%.2f,%.2f,%.3f,%.3f,%.3f,%.3f,%.4f,%.4f,%.4f,%.2f,%.2f,%hhu,%hhu,%.3f,%.3f,%.3f,%.3f,%hhu,%.2f,%.2f",
-    "mode,reason,roll_rad,pitch_rad,course_rad,alt_m,speed_m_s,stick_aileron,stick_elevator,\
-     stick_throttle,stick_rudder,roll_c_rad,pitch_c_rad,course_c_rad,alt_c_m,speed_c_m_s,zone,\
-     waypoint,aileron,elevator,throttle,rudder,ready,wind_n_m_s,wind_e_m_s",
-);
-pub const CONTROL_GAINS_LOG: LogFormat = LogFormat::new(
-    "%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.2f,%.2f,%.2f,%.2f,%.2f",
-    "roll_kp,roll_ki,roll_kd,pitch_kp,pitch_ki,pitch_kd,course_kp,course_ki,alt_kp,alt_ki,\
-     alt_kd,speed_kp,speed_ki,speed_pitch_kp,speed_pitch_ki,yaw_damper,trim_elevator,\
-     trim_throttle,max_bank_deg,max_pitch_deg,stab_roll_deg,stab_pitch_deg,cruise_m_s",
-);
+crate::log_record! {
+    /// Each control step: the mode and why, the estimate it used, the pilot's sticks, the targets and the commands (format 1).
+    pub struct ControlLog {
+        mode: u8 = "%hhu",
+        reason: u8 = "%hhu",
+        roll_rad: f32 = "%.4f",
+        pitch_rad: f32 = "%.4f",
+        course_rad: f32 = "%.4f",
+        alt_m: f32 = "%.2f",
+        speed_m_s: f32 = "%.2f",
+        stick_aileron: f32 = "%.3f",
+        stick_elevator: f32 = "%.3f",
+        stick_throttle: f32 = "%.3f",
+        stick_rudder: f32 = "%.3f",
+        roll_c_rad: f32 = "%.4f",
+        pitch_c_rad: f32 = "%.4f",
+        course_c_rad: f32 = "%.4f",
+        alt_c_m: f32 = "%.2f",
+        speed_c_m_s: f32 = "%.2f",
+        zone: u8 = "%hhu",
+        waypoint: u8 = "%hhu",
+        aileron: f32 = "%.3f",
+        elevator: f32 = "%.3f",
+        throttle: f32 = "%.3f",
+        rudder: f32 = "%.3f",
+        ready: bool = "%hhu",
+        wind_n_m_s: f32 = "%.2f",
+        wind_e_m_s: f32 = "%.2f",
+    }
+}
+crate::log_record! {
+    /// The parameters in force, whenever they change (format 2); the columns are the `control.*` parameters' names, in `param_specs` order.
+    pub struct ControlGainsLog {
+        roll_kp: f32 = "%.4f",
+        roll_ki: f32 = "%.4f",
+        roll_kd: f32 = "%.4f",
+        pitch_kp: f32 = "%.4f",
+        pitch_ki: f32 = "%.4f",
+        pitch_kd: f32 = "%.4f",
+        course_kp: f32 = "%.4f",
+        course_ki: f32 = "%.4f",
+        alt_kp: f32 = "%.4f",
+        alt_ki: f32 = "%.4f",
+        alt_kd: f32 = "%.4f",
+        speed_kp: f32 = "%.4f",
+        speed_ki: f32 = "%.4f",
+        speed_pitch_kp: f32 = "%.4f",
+        speed_pitch_ki: f32 = "%.4f",
+        yaw_damper: f32 = "%.4f",
+        trim_elevator: f32 = "%.4f",
+        trim_throttle: f32 = "%.4f",
+        max_bank_deg: f32 = "%.2f",
+        max_pitch_deg: f32 = "%.2f",
+        stab_roll_deg: f32 = "%.2f",
+        stab_pitch_deg: f32 = "%.2f",
+        cruise_m_s: f32 = "%.2f",
+    }
+}
 pub const CONTROL_INDEX: u8 = 1;
 pub const GAINS_INDEX: u8 = 2;
 
@@ -219,8 +263,6 @@ pub struct ControlTask<'a, S: RecordSink> {
     progress: MissionProgress,
     hold: Option<(f32, f32)>,
     log: TaskLog<S>,
-    control_format: Format,
-    gains_format: Format,
     estimate: SlotReader<'a, Estimate>,
     pilot: SlotReader<'a, PilotInput>,
     requested: SlotReader<'a, FlightMode>,
@@ -255,8 +297,6 @@ impl<'a, S: RecordSink> ControlTask<'a, S> {
             progress: MissionProgress::default(),
             hold: None,
             log: TaskLog::new(log),
-            control_format: Format::EMPTY,
-            gains_format: Format::EMPTY,
             estimate: estimate.reader(),
             pilot: pilot.reader(),
             requested: requested.reader(),
@@ -297,9 +337,57 @@ impl<'a, S: RecordSink> ControlTask<'a, S> {
         if !self.gains_logged {
             self.gains_logged = true;
             let values = param_specs(&self.settings).map(|(_, v, _, _)| v);
-            self.log.record(cx, GAINS_INDEX, &self.gains_format, |w| {
-                values.iter().fold(w, |w, &v| w.f32(v))
-            });
+            let [
+                roll_kp,
+                roll_ki,
+                roll_kd,
+                pitch_kp,
+                pitch_ki,
+                pitch_kd,
+                course_kp,
+                course_ki,
+                alt_kp,
+                alt_ki,
+                alt_kd,
+                speed_kp,
+                speed_ki,
+                speed_pitch_kp,
+                speed_pitch_ki,
+                yaw_damper,
+                trim_elevator,
+                trim_throttle,
+                max_bank_deg,
+                max_pitch_deg,
+                stab_roll_deg,
+                stab_pitch_deg,
+                cruise_m_s,
+            ] = values;
+            let record = ControlGainsLog {
+                roll_kp,
+                roll_ki,
+                roll_kd,
+                pitch_kp,
+                pitch_ki,
+                pitch_kd,
+                course_kp,
+                course_ki,
+                alt_kp,
+                alt_ki,
+                alt_kd,
+                speed_kp,
+                speed_ki,
+                speed_pitch_kp,
+                speed_pitch_ki,
+                yaw_damper,
+                trim_elevator,
+                trim_throttle,
+                max_bank_deg,
+                max_pitch_deg,
+                stab_roll_deg,
+                stab_pitch_deg,
+                cruise_m_s,
+            };
+            self.log.log(cx, GAINS_INDEX, &record);
         }
     }
 
@@ -401,47 +489,45 @@ impl<'a, S: RecordSink> ControlTask<'a, S> {
             });
         let [wind_n, wind_e] = self.autopilot.wind().wind_ne_mps();
         let (st, t, c) = (s.sticks, s.targets, s.command.controls);
-        self.log
-            .record(cx, CONTROL_INDEX, &self.control_format, |w| {
-                w.u8(s.decision.mode as u8)
-                    .u8(s.decision.reason as u8)
-                    .f32(roll)
-                    .f32(pitch)
-                    .f32(course)
-                    .f32(alt)
-                    .f32(speed)
-                    .f32(st.aileron)
-                    .f32(st.elevator)
-                    .f32(st.throttle)
-                    .f32(st.rudder)
-                    .f32(t.roll_rad)
-                    .f32(t.pitch_rad)
-                    .f32(t.course_rad)
-                    .f32(t.altitude_m)
-                    .f32(t.airspeed_mps)
-                    .u8(t.zone as u8)
-                    .u8(s.waypoint)
-                    .f32(c.aileron)
-                    .f32(c.elevator)
-                    .f32(c.throttle)
-                    .f32(c.rudder)
-                    .u8(u8::from(s.command.ready))
-                    .f32(wind_n)
-                    .f32(wind_e)
-            });
+        let record = ControlLog {
+            mode: s.decision.mode as u8,
+            reason: s.decision.reason as u8,
+            roll_rad: roll,
+            pitch_rad: pitch,
+            course_rad: course,
+            alt_m: alt,
+            speed_m_s: speed,
+            stick_aileron: st.aileron,
+            stick_elevator: st.elevator,
+            stick_throttle: st.throttle,
+            stick_rudder: st.rudder,
+            roll_c_rad: t.roll_rad,
+            pitch_c_rad: t.pitch_rad,
+            course_c_rad: t.course_rad,
+            alt_c_m: t.altitude_m,
+            speed_c_m_s: t.airspeed_mps,
+            zone: t.zone as u8,
+            waypoint: s.waypoint,
+            aileron: c.aileron,
+            elevator: c.elevator,
+            throttle: c.throttle,
+            rudder: c.rudder,
+            ready: s.command.ready,
+            wind_n_m_s: wind_n,
+            wind_e_m_s: wind_e,
+        };
+        self.log.log(cx, CONTROL_INDEX, &record);
     }
 }
 
 impl<S: RecordSink> Task for ControlTask<'_, S> {
     fn init(&mut self, cx: &mut TaskContext<'_>) -> Result<(), TaskFault> {
         let bad = |_| TaskFault::new("control log format");
-        self.control_format = self
-            .log
-            .declare(cx, CONTROL_INDEX, &CONTROL_LOG)
+        self.log
+            .declare::<ControlLog>(cx, CONTROL_INDEX)
             .map_err(bad)?;
-        self.gains_format = self
-            .log
-            .declare(cx, GAINS_INDEX, &CONTROL_GAINS_LOG)
+        self.log
+            .declare::<ControlGainsLog>(cx, GAINS_INDEX)
             .map_err(bad)?;
         self.log.begin(cx);
         self.gains_logged = false;

@@ -6,14 +6,23 @@ use super::task_log::TaskLog;
 use crate::comm::RecordSink;
 use crate::devices::{Decoder, DecoderStats};
 use crate::executive::TaskContext;
-use crate::logfmt::format::Format;
-use crate::logfmt::record::{EncodeError, LogFormat};
+use crate::logfmt::record::EncodeError;
 
-pub const DEVICE_STATUS_LOG: LogFormat = LogFormat::new(
-    "%u,%u,%u,%u,%u,%u,%u,%u,%u,%hhu",
-    "frames,bad_checksum,framing_errors,overflows,bytes_discarded,invalid_payload,ignored,\
-     sequence_gaps,stale_events,stale",
-);
+crate::log_record! {
+    /// A device's decoder counters, once a second.
+    pub struct DeviceStatusRecord {
+        frames: u32 = "%u",
+        bad_checksum: u32 = "%u",
+        framing_errors: u32 = "%u",
+        overflows: u32 = "%u",
+        bytes_discarded: u32 = "%u",
+        invalid_payload: u32 = "%u",
+        ignored: u32 = "%u",
+        sequence_gaps: u32 = "%u",
+        stale_events: u32 = "%u",
+        stale: bool = "%hhu",
+    }
+}
 
 const INTERVAL_NS: u64 = 1_000_000_000;
 
@@ -23,7 +32,6 @@ pub const DEVICE_STALE: &str = "device stale";
 /// The status record of one device task.
 pub struct DeviceStatusLog {
     index: u8,
-    format: Format,
     next_ns: u64,
 }
 
@@ -31,7 +39,6 @@ impl DeviceStatusLog {
     pub const fn new(index: u8) -> Self {
         Self {
             index,
-            format: Format::EMPTY,
             next_ns: 0,
         }
     }
@@ -41,7 +48,7 @@ impl DeviceStatusLog {
         log: &mut TaskLog<S>,
         cx: &TaskContext<'_>,
     ) -> Result<(), EncodeError> {
-        self.format = log.declare(cx, self.index, &DEVICE_STATUS_LOG)?;
+        log.declare::<DeviceStatusRecord>(cx, self.index)?;
         self.next_ns = cx.now_ns;
         Ok(())
     }
@@ -89,17 +96,18 @@ impl DeviceStatusLog {
             .next_ns
             .saturating_add(INTERVAL_NS)
             .max(cx.now_ns.saturating_add(1));
-        log.record(cx, self.index, &self.format, |w| {
-            w.u32(stats.frames)
-                .u32(stats.bad_checksum)
-                .u32(stats.framing_errors)
-                .u32(stats.overflows)
-                .u32(stats.bytes_discarded)
-                .u32(stats.invalid_payload)
-                .u32(stats.ignored)
-                .u32(stats.sequence_gaps)
-                .u32(stats.stale_events)
-                .u8(u8::from(stale))
-        });
+        let record = DeviceStatusRecord {
+            frames: stats.frames,
+            bad_checksum: stats.bad_checksum,
+            framing_errors: stats.framing_errors,
+            overflows: stats.overflows,
+            bytes_discarded: stats.bytes_discarded,
+            invalid_payload: stats.invalid_payload,
+            ignored: stats.ignored,
+            sequence_gaps: stats.sequence_gaps,
+            stale_events: stats.stale_events,
+            stale,
+        };
+        log.log(cx, self.index, &record);
     }
 }

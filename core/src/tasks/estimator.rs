@@ -16,25 +16,81 @@ use crate::devices::imu::ImuSample;
 use crate::estimation::{Estimate, Estimator, EstimatorConfig, HealthReason, Phase};
 use crate::executive::{Task, TaskContext, TaskFault};
 use crate::link::messages::HorizonAttitude;
-use crate::logfmt::format::Format;
-use crate::logfmt::record::LogFormat;
 
-pub const ESTIMATOR_STATE_LOG: LogFormat = LogFormat::new(
-    "%.5f,%.5f,%.5f,%.6f,%.6f,%.6f,%.6f,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f,%.6f,%.6f,%.6f,%.5f,%.5f,%.5f,%hhu",
-    "roll_rad,pitch_rad,yaw_rad,qw,qx,qy,qz,vn_m_s,ve_m_s,vd_m_s,pn_m,pe_m,pd_m,\
-     bgx_rad_s,bgy_rad_s,bgz_rad_s,bax_m_s2,bay_m_s2,baz_m_s2,healthy",
-);
-pub const ESTIMATOR_HEALTH_LOG: LogFormat = LogFormat::new(
-    "%hhu,%hhu,%u,%hhu,%hhu,%u,%u,%u,%u,%u,%u,%u,%u,%u,%u,%u,%u,%u,%u,%.2f,%.2f",
-    "phase,align_pct,align_restarts,healthy,reason,imu_steps,imu_rejected,imu_missed,\
-     gps_pos_ok,gps_pos_rejected,gps_vel_ok,gps_vel_rejected,gps_unusable,gps_resets,\
-     horizon_ok,horizon_rejected,horizon_unusable,resets,cov_repairs,gps_pos_nis,gps_vel_nis",
-);
-pub const ESTIMATOR_SD_LOG: LogFormat = LogFormat::new(
-    "%.3f,%.3f,%.3f,%.4f,%.4f,%.4f,%.6f,%.6f,%.6f,%.7f,%.7f,%.7f,%.5f,%.5f,%.5f",
-    "sd_pn_m,sd_pe_m,sd_pd_m,sd_vn_m_s,sd_ve_m_s,sd_vd_m_s,sd_thn_rad,sd_the_rad,sd_thd_rad,\
-     sd_bgx_rad_s,sd_bgy_rad_s,sd_bgz_rad_s,sd_bax_m_s2,sd_bay_m_s2,sd_baz_m_s2",
-);
+crate::log_record! {
+    /// The state, every step (format 1).
+    pub struct EstimatorStateLog {
+        roll_rad: f32 = "%.5f",
+        pitch_rad: f32 = "%.5f",
+        yaw_rad: f32 = "%.5f",
+        qw: f32 = "%.6f",
+        qx: f32 = "%.6f",
+        qy: f32 = "%.6f",
+        qz: f32 = "%.6f",
+        vn_m_s: f32 = "%.3f",
+        ve_m_s: f32 = "%.3f",
+        vd_m_s: f32 = "%.3f",
+        pn_m: f32 = "%.3f",
+        pe_m: f32 = "%.3f",
+        pd_m: f32 = "%.3f",
+        bgx_rad_s: f32 = "%.6f",
+        bgy_rad_s: f32 = "%.6f",
+        bgz_rad_s: f32 = "%.6f",
+        bax_m_s2: f32 = "%.5f",
+        bay_m_s2: f32 = "%.5f",
+        baz_m_s2: f32 = "%.5f",
+        healthy: bool = "%hhu",
+    }
+}
+
+crate::log_record! {
+    /// Health, alignment and gate counters, once a second and on every change (format 2).
+    pub struct EstimatorHealthLog {
+        phase: u8 = "%hhu",
+        align_pct: u8 = "%hhu",
+        align_restarts: u32 = "%u",
+        healthy: bool = "%hhu",
+        reason: u8 = "%hhu",
+        imu_steps: u32 = "%u",
+        imu_rejected: u32 = "%u",
+        imu_missed: u32 = "%u",
+        gps_pos_ok: u32 = "%u",
+        gps_pos_rejected: u32 = "%u",
+        gps_vel_ok: u32 = "%u",
+        gps_vel_rejected: u32 = "%u",
+        gps_unusable: u32 = "%u",
+        gps_resets: u32 = "%u",
+        horizon_ok: u32 = "%u",
+        horizon_rejected: u32 = "%u",
+        horizon_unusable: u32 = "%u",
+        resets: u32 = "%u",
+        cov_repairs: u32 = "%u",
+        gps_pos_nis: f32 = "%.2f",
+        gps_vel_nis: f32 = "%.2f",
+    }
+}
+
+crate::log_record! {
+    /// The state's standard deviations, every step (format 3).
+    pub struct EstimatorSdLog {
+        sd_pn_m: f32 = "%.3f",
+        sd_pe_m: f32 = "%.3f",
+        sd_pd_m: f32 = "%.3f",
+        sd_vn_m_s: f32 = "%.4f",
+        sd_ve_m_s: f32 = "%.4f",
+        sd_vd_m_s: f32 = "%.4f",
+        sd_thn_rad: f32 = "%.6f",
+        sd_the_rad: f32 = "%.6f",
+        sd_thd_rad: f32 = "%.6f",
+        sd_bgx_rad_s: f32 = "%.7f",
+        sd_bgy_rad_s: f32 = "%.7f",
+        sd_bgz_rad_s: f32 = "%.7f",
+        sd_bax_m_s2: f32 = "%.5f",
+        sd_bay_m_s2: f32 = "%.5f",
+        sd_baz_m_s2: f32 = "%.5f",
+    }
+}
+
 pub const STATE_INDEX: u8 = 1;
 pub const HEALTH_INDEX: u8 = 2;
 pub const SD_INDEX: u8 = 3;
@@ -48,9 +104,6 @@ const HEALTH_LOG_INTERVAL_NS: u64 = 1_000_000_000;
 pub struct EstimatorTask<'a, S: RecordSink> {
     estimator: Estimator,
     log: TaskLog<S>,
-    state_format: Format,
-    health_format: Format,
-    sd_format: Format,
     imu: SlotReader<'a, ImuSample>,
     gps: SlotReader<'a, GpsFix>,
     horizon: Option<SlotReader<'a, HorizonAttitude>>,
@@ -75,9 +128,6 @@ impl<'a, S: RecordSink> EstimatorTask<'a, S> {
         Self {
             estimator: Estimator::new(config),
             log: TaskLog::new(log),
-            state_format: Format::EMPTY,
-            health_format: Format::EMPTY,
-            sd_format: Format::EMPTY,
             imu: imu.reader(),
             gps: gps.reader(),
             horizon: horizon.map(LatestSlot::reader),
@@ -135,36 +185,68 @@ impl<'a, S: RecordSink> EstimatorTask<'a, S> {
 
     fn log_estimate(&mut self, cx: &TaskContext<'_>, e: &Estimate) {
         let [qw, qx, qy, qz] = e.quaternion;
-        let [vn, ve, vd] = e.velocity_ned_mps;
-        let [pn, pe, pd] = e.position_ned_m;
-        let [gx, gy, gz] = e.gyro_bias_radps;
-        let [ax, ay, az] = e.accel_bias_mps2;
-        self.log.record(cx, STATE_INDEX, &self.state_format, |w| {
-            w.f32(e.roll_rad)
-                .f32(e.pitch_rad)
-                .f32(e.yaw_rad)
-                .f32(qw)
-                .f32(qx)
-                .f32(qy)
-                .f32(qz)
-                .f32(vn)
-                .f32(ve)
-                .f32(vd)
-                .f32(pn)
-                .f32(pe)
-                .f32(pd)
-                .f32(gx)
-                .f32(gy)
-                .f32(gz)
-                .f32(ax)
-                .f32(ay)
-                .f32(az)
-                .u8(u8::from(e.health.healthy))
-        });
-        let sd = e.covariance_diag.map(|v| libm::sqrtf(v.max(0.0)));
-        self.log.record(cx, SD_INDEX, &self.sd_format, |w| {
-            sd.iter().fold(w, |w, &s| w.f32(s))
-        });
+        let [vn_m_s, ve_m_s, vd_m_s] = e.velocity_ned_mps;
+        let [pn_m, pe_m, pd_m] = e.position_ned_m;
+        let [bgx_rad_s, bgy_rad_s, bgz_rad_s] = e.gyro_bias_radps;
+        let [bax_m_s2, bay_m_s2, baz_m_s2] = e.accel_bias_mps2;
+        let state = EstimatorStateLog {
+            roll_rad: e.roll_rad,
+            pitch_rad: e.pitch_rad,
+            yaw_rad: e.yaw_rad,
+            qw,
+            qx,
+            qy,
+            qz,
+            vn_m_s,
+            ve_m_s,
+            vd_m_s,
+            pn_m,
+            pe_m,
+            pd_m,
+            bgx_rad_s,
+            bgy_rad_s,
+            bgz_rad_s,
+            bax_m_s2,
+            bay_m_s2,
+            baz_m_s2,
+            healthy: e.health.healthy,
+        };
+        self.log.log(cx, STATE_INDEX, &state);
+        let [
+            sd_pn_m,
+            sd_pe_m,
+            sd_pd_m,
+            sd_vn_m_s,
+            sd_ve_m_s,
+            sd_vd_m_s,
+            sd_thn_rad,
+            sd_the_rad,
+            sd_thd_rad,
+            sd_bgx_rad_s,
+            sd_bgy_rad_s,
+            sd_bgz_rad_s,
+            sd_bax_m_s2,
+            sd_bay_m_s2,
+            sd_baz_m_s2,
+        ] = e.covariance_diag.map(|v| libm::sqrtf(v.max(0.0)));
+        let sd = EstimatorSdLog {
+            sd_pn_m,
+            sd_pe_m,
+            sd_pd_m,
+            sd_vn_m_s,
+            sd_ve_m_s,
+            sd_vd_m_s,
+            sd_thn_rad,
+            sd_the_rad,
+            sd_thd_rad,
+            sd_bgx_rad_s,
+            sd_bgy_rad_s,
+            sd_bgz_rad_s,
+            sd_bax_m_s2,
+            sd_bay_m_s2,
+            sd_baz_m_s2,
+        };
+        self.log.log(cx, SD_INDEX, &sd);
         let h = e.health;
         let key = (h.phase, h.healthy, h.reason);
         let due = self
@@ -174,30 +256,30 @@ impl<'a, S: RecordSink> EstimatorTask<'a, S> {
             self.last_health_log_ns = Some(cx.now_ns);
             self.last_health_key = Some(key);
             let c = h.counters;
-            let missed = self.imu_missed;
-            self.log.record(cx, HEALTH_INDEX, &self.health_format, |w| {
-                w.u8(h.phase as u8)
-                    .u8(h.alignment_percent)
-                    .u32(h.alignment_restarts)
-                    .u8(u8::from(h.healthy))
-                    .u8(h.reason as u8)
-                    .u32(c.imu_steps)
-                    .u32(c.imu_rejected)
-                    .u32(missed)
-                    .u32(c.gps_pos_accepted)
-                    .u32(c.gps_pos_rejected)
-                    .u32(c.gps_vel_accepted)
-                    .u32(c.gps_vel_rejected)
-                    .u32(c.gps_unusable)
-                    .u32(c.gps_resets)
-                    .u32(c.horizon_accepted)
-                    .u32(c.horizon_rejected)
-                    .u32(c.horizon_unusable)
-                    .u32(c.resets)
-                    .u32(c.covariance_repairs)
-                    .f32(h.gps_pos_nis)
-                    .f32(h.gps_vel_nis)
-            });
+            let health = EstimatorHealthLog {
+                phase: h.phase as u8,
+                align_pct: h.alignment_percent,
+                align_restarts: h.alignment_restarts,
+                healthy: h.healthy,
+                reason: h.reason as u8,
+                imu_steps: c.imu_steps,
+                imu_rejected: c.imu_rejected,
+                imu_missed: self.imu_missed,
+                gps_pos_ok: c.gps_pos_accepted,
+                gps_pos_rejected: c.gps_pos_rejected,
+                gps_vel_ok: c.gps_vel_accepted,
+                gps_vel_rejected: c.gps_vel_rejected,
+                gps_unusable: c.gps_unusable,
+                gps_resets: c.gps_resets,
+                horizon_ok: c.horizon_accepted,
+                horizon_rejected: c.horizon_rejected,
+                horizon_unusable: c.horizon_unusable,
+                resets: c.resets,
+                cov_repairs: c.covariance_repairs,
+                gps_pos_nis: h.gps_pos_nis,
+                gps_vel_nis: h.gps_vel_nis,
+            };
+            self.log.log(cx, HEALTH_INDEX, &health);
         }
     }
 }
@@ -205,17 +287,14 @@ impl<'a, S: RecordSink> EstimatorTask<'a, S> {
 impl<S: RecordSink> Task for EstimatorTask<'_, S> {
     fn init(&mut self, cx: &mut TaskContext<'_>) -> Result<(), TaskFault> {
         let bad = |_| TaskFault::new("estimator log format");
-        self.state_format = self
-            .log
-            .declare(cx, STATE_INDEX, &ESTIMATOR_STATE_LOG)
+        self.log
+            .declare::<EstimatorStateLog>(cx, STATE_INDEX)
             .map_err(bad)?;
-        self.health_format = self
-            .log
-            .declare(cx, HEALTH_INDEX, &ESTIMATOR_HEALTH_LOG)
+        self.log
+            .declare::<EstimatorHealthLog>(cx, HEALTH_INDEX)
             .map_err(bad)?;
-        self.sd_format = self
-            .log
-            .declare(cx, SD_INDEX, &ESTIMATOR_SD_LOG)
+        self.log
+            .declare::<EstimatorSdLog>(cx, SD_INDEX)
             .map_err(bad)?;
         self.log.begin(cx);
         self.last_health_log_ns = None;

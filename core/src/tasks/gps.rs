@@ -9,15 +9,29 @@ use crate::devices::DecoderStats;
 use crate::devices::gps::{GpsConfig, GpsFix, NmeaDecoder};
 use crate::devices::port::drain;
 use crate::executive::{Task, TaskContext, TaskFault};
-use crate::logfmt::format::Format;
-use crate::logfmt::record::LogFormat;
 use embedded_io::{Read, ReadReady};
 
-pub const GPS_FIX_LOG: LogFormat = LogFormat::new(
-    "%hhu,%hhu,%hhu,%.8lf,%.8lf,%.3lf,%.3f,%.3f,%.3f,%.2f,%.2f,%.2f,%.3f,%.3f,%.3f,%u",
-    "valid,quality,satellites,lat_deg,lon_deg,alt_m,vn_m_s,ve_m_s,vd_m_s,pdop,hdop,vdop,\
-     sd_n_m,sd_e_m,sd_d_m,utc_ms",
-);
+crate::log_record! {
+    /// Each fix the receiver completes (format 1); unknown values are NaN or the all-ones integer.
+    pub struct GpsFixLog {
+        valid: bool = "%hhu",
+        quality: u8 = "%hhu",
+        satellites: u8 = "%hhu",
+        lat_deg: f64 = "%.8lf",
+        lon_deg: f64 = "%.8lf",
+        alt_m: f64 = "%.3lf",
+        vn_m_s: f32 = "%.3f",
+        ve_m_s: f32 = "%.3f",
+        vd_m_s: f32 = "%.3f",
+        pdop: f32 = "%.2f",
+        hdop: f32 = "%.2f",
+        vdop: f32 = "%.2f",
+        sd_n_m: f32 = "%.3f",
+        sd_e_m: f32 = "%.3f",
+        sd_d_m: f32 = "%.3f",
+        utc_ms: u32 = "%u",
+    }
+}
 pub const FIX_INDEX: u8 = 1;
 pub const STATUS_INDEX: u8 = 2;
 
@@ -32,7 +46,6 @@ pub struct GpsTask<'a, P, S: RecordSink> {
     port: P,
     decoder: NmeaDecoder,
     log: TaskLog<S>,
-    fix_format: Format,
     status: DeviceStatusLog,
     fixes: &'a LatestSlot<GpsFix>,
 }
@@ -43,7 +56,6 @@ impl<'a, P: Read + ReadReady, S: RecordSink> GpsTask<'a, P, S> {
             port,
             decoder: NmeaDecoder::new(config),
             log: TaskLog::new(log),
-            fix_format: Format::EMPTY,
             status: DeviceStatusLog::new(STATUS_INDEX),
             fixes,
         }
@@ -65,7 +77,9 @@ fn or_nan64(v: Option<f64>) -> f64 {
 impl<P: Read + ReadReady, S: RecordSink> Task for GpsTask<'_, P, S> {
     fn init(&mut self, cx: &mut TaskContext<'_>) -> Result<(), TaskFault> {
         let bad = |_| TaskFault::new("gps log format");
-        self.fix_format = self.log.declare(cx, FIX_INDEX, &GPS_FIX_LOG).map_err(bad)?;
+        self.log
+            .declare::<GpsFixLog>(cx, FIX_INDEX)
+            .map_err(bad)?;
         self.status.declare(&mut self.log, cx).map_err(bad)?;
         self.log.begin(cx);
         Ok(())
@@ -77,7 +91,6 @@ impl<P: Read + ReadReady, S: RecordSink> Task for GpsTask<'_, P, S> {
             port,
             decoder,
             log,
-            fix_format,
             fixes,
             ..
         } = self;
@@ -90,24 +103,25 @@ impl<P: Read + ReadReady, S: RecordSink> Task for GpsTask<'_, P, S> {
                 fixes.publish(fix);
                 let [vn, ve, vd] = fix.velocity_ned_mps;
                 let [sd_n, sd_e, sd_d] = fix.position_sd_m;
-                log.record(cx, FIX_INDEX, fix_format, |w| {
-                    w.u8(u8::from(fix.valid))
-                        .u8(fix.quality.map_or(UNKNOWN_U8, |q| q.gga_code()))
-                        .u8(fix.satellites.unwrap_or(UNKNOWN_U8))
-                        .f64(or_nan64(fix.latitude_deg))
-                        .f64(or_nan64(fix.longitude_deg))
-                        .f64(or_nan64(fix.altitude_msl_m))
-                        .f32(or_nan32(vn))
-                        .f32(or_nan32(ve))
-                        .f32(or_nan32(vd))
-                        .f32(or_nan32(fix.pdop))
-                        .f32(or_nan32(fix.hdop))
-                        .f32(or_nan32(fix.vdop))
-                        .f32(or_nan32(sd_n))
-                        .f32(or_nan32(sd_e))
-                        .f32(or_nan32(sd_d))
-                        .u32(fix.utc_time_ms.unwrap_or(UNKNOWN_U32))
-                });
+                let record = GpsFixLog {
+                    valid: fix.valid,
+                    quality: fix.quality.map_or(UNKNOWN_U8, |q| q.gga_code()),
+                    satellites: fix.satellites.unwrap_or(UNKNOWN_U8),
+                    lat_deg: or_nan64(fix.latitude_deg),
+                    lon_deg: or_nan64(fix.longitude_deg),
+                    alt_m: or_nan64(fix.altitude_msl_m),
+                    vn_m_s: or_nan32(vn),
+                    ve_m_s: or_nan32(ve),
+                    vd_m_s: or_nan32(vd),
+                    pdop: or_nan32(fix.pdop),
+                    hdop: or_nan32(fix.hdop),
+                    vdop: or_nan32(fix.vdop),
+                    sd_n_m: or_nan32(sd_n),
+                    sd_e_m: or_nan32(sd_e),
+                    sd_d_m: or_nan32(sd_d),
+                    utc_ms: fix.utc_time_ms.unwrap_or(UNKNOWN_U32),
+                };
+                log.log(cx, FIX_INDEX, &record);
             },
         );
         self.status.after_step(&mut self.log, cx, &self.decoder);

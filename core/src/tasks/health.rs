@@ -9,17 +9,19 @@
 
 use crate::comm::{LatestSlot, NoLog, RecordSink};
 use crate::executive::{Task, TaskContext, TaskFault};
-use crate::logfmt::format::Format;
-use crate::logfmt::record::LogFormat;
 use crate::schedule::analysis::MAX_TASKS;
 use crate::tasks::task_log::TaskLog;
 
-/// `watchdog.bin`, one record per check: what the watchdog saw (masks are bit sets in
-/// frame-table order) and the misses counted so far over all tasks.
-pub const WATCHDOG_LOG: LogFormat = LogFormat::new(
-    "%u,%u,%u,%u,%u",
-    "checks,alive_mask,stalled_mask,misses_total,period_ms",
-);
+crate::log_record! {
+    /// Each watchdog check: which tasks are alive and which stalled, as bit masks.
+    pub struct WatchdogLog {
+        checks: u32 = "%u",
+        alive_mask: u32 = "%u",
+        stalled_mask: u32 = "%u",
+        misses_total: u32 = "%u",
+        period_ms: u32 = "%u",
+    }
+}
 const WATCHDOG_INDEX: u8 = 1;
 
 /// What the watchdog saw at its last check.
@@ -41,7 +43,8 @@ pub struct WatchdogReport {
 pub struct HealthTask<'a, S: RecordSink = NoLog> {
     report: WatchdogReport,
     log: TaskLog<S>,
-    log_format: Format,
+    /// The log is declared once, by the first init (a reset does not restart it).
+    declared: bool,
     /// Release counts at the previous check.
     releases_seen: [u64; MAX_TASKS],
     out: &'a LatestSlot<WatchdogReport>,
@@ -55,7 +58,7 @@ impl<'a> HealthTask<'a, NoLog> {
         Self {
             report: WatchdogReport::default(),
             log: TaskLog::new(NoLog),
-            log_format: Format::EMPTY,
+            declared: false,
             releases_seen: [0; MAX_TASKS],
             out,
             period_ms: None,
@@ -68,7 +71,7 @@ impl<'a> HealthTask<'a, NoLog> {
         HealthTask {
             report: self.report,
             log: TaskLog::new(sink),
-            log_format: self.log_format,
+            declared: self.declared,
             releases_seen: self.releases_seen,
             out: self.out,
             period_ms: self.period_ms,
@@ -92,11 +95,11 @@ impl<'a, S: RecordSink> HealthTask<'a, S> {
 
 impl<S: RecordSink> Task for HealthTask<'_, S> {
     fn init(&mut self, cx: &mut TaskContext<'_>) -> Result<(), TaskFault> {
-        if self.log_format.fields().is_empty() {
-            self.log_format = self
-                .log
-                .declare(cx, WATCHDOG_INDEX, &WATCHDOG_LOG)
+        if !self.declared {
+            self.log
+                .declare::<WatchdogLog>(cx, WATCHDOG_INDEX)
                 .map_err(|_| TaskFault::new("watchdog log format"))?;
+            self.declared = true;
             self.log.begin(cx);
         }
         // Start counting from now: releases before (re)initialisation are not held against
@@ -148,13 +151,14 @@ impl<S: RecordSink> Task for HealthTask<'_, S> {
         let r = self.report;
         let misses_total = r.misses.iter().fold(0u32, |sum, m| sum.saturating_add(*m));
         let period_ms = u32::try_from(period_ns / 1_000_000).unwrap_or(u32::MAX);
-        self.log.record(cx, WATCHDOG_INDEX, &self.log_format, |w| {
-            w.u32(r.checks)
-                .u32(r.alive)
-                .u32(r.stalled)
-                .u32(misses_total)
-                .u32(period_ms)
-        });
+        let record = WatchdogLog {
+            checks: r.checks,
+            alive_mask: r.alive,
+            stalled_mask: r.stalled,
+            misses_total,
+            period_ms,
+        };
+        self.log.log(cx, WATCHDOG_INDEX, &record);
         Ok(())
     }
 

@@ -8,19 +8,37 @@ use crate::devices::imu::{ImuDecoder, ImuFrame, ImuSample};
 use crate::devices::port::drain;
 use crate::devices::{Decoder, DecoderStats};
 use crate::executive::{Task, TaskContext, TaskFault};
-use crate::logfmt::format::Format;
-use crate::logfmt::record::LogFormat;
 use embedded_io::{Read, ReadReady};
 
-pub const IMU_FAST_LOG: LogFormat = LogFormat::new(
-    "%hhu,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%hhu",
-    "counter,p_rad_s,q_rad_s,r_rad_s,fx_m_s2,fy_m_s2,fz_m_s2,status",
-);
-pub const IMU_SLOW_LOG: LogFormat = LogFormat::new(
-    "%hu,%.2f,%.3f,%hu,%.5f,%.5f,%.5f,%.4f,%.4f,%.4f,%hu",
-    "record_counter,temperature_c,supply_v,serial_number,mean_p_rad_s,mean_q_rad_s,\
-     mean_r_rad_s,mean_fx_m_s2,mean_fy_m_s2,mean_fz_m_s2,built_in_test",
-);
+crate::log_record! {
+    /// Each 100 Hz frame (format 1).
+    pub struct ImuFastLog {
+        counter: u8 = "%hhu",
+        p_rad_s: f32 = "%.4f",
+        q_rad_s: f32 = "%.4f",
+        r_rad_s: f32 = "%.4f",
+        fx_m_s2: f32 = "%.4f",
+        fy_m_s2: f32 = "%.4f",
+        fz_m_s2: f32 = "%.4f",
+        status: u8 = "%hhu",
+    }
+}
+crate::log_record! {
+    /// Each slow record (format 2).
+    pub struct ImuSlowLog {
+        record_counter: u16 = "%hu",
+        temperature_c: f32 = "%.2f",
+        supply_v: f32 = "%.3f",
+        serial_number: u16 = "%hu",
+        mean_p_rad_s: f32 = "%.5f",
+        mean_q_rad_s: f32 = "%.5f",
+        mean_r_rad_s: f32 = "%.5f",
+        mean_fx_m_s2: f32 = "%.4f",
+        mean_fy_m_s2: f32 = "%.4f",
+        mean_fz_m_s2: f32 = "%.4f",
+        built_in_test: u16 = "%hu",
+    }
+}
 pub const FAST_INDEX: u8 = 1;
 pub const SLOW_INDEX: u8 = 2;
 pub const STATUS_INDEX: u8 = 3;
@@ -33,8 +51,6 @@ pub struct ImuTask<'a, P, S: RecordSink> {
     port: P,
     decoder: ImuDecoder,
     log: TaskLog<S>,
-    fast: Format,
-    slow: Format,
     status: DeviceStatusLog,
     samples: &'a LatestSlot<ImuSample>,
 }
@@ -45,8 +61,6 @@ impl<'a, P: Read + ReadReady, S: RecordSink> ImuTask<'a, P, S> {
             port,
             decoder: ImuDecoder::new(stale_timeout_ns),
             log: TaskLog::new(log),
-            fast: Format::EMPTY,
-            slow: Format::EMPTY,
             status: DeviceStatusLog::new(STATUS_INDEX),
             samples,
         }
@@ -64,13 +78,11 @@ impl<'a, P: Read + ReadReady, S: RecordSink> ImuTask<'a, P, S> {
 impl<P: Read + ReadReady, S: RecordSink> Task for ImuTask<'_, P, S> {
     fn init(&mut self, cx: &mut TaskContext<'_>) -> Result<(), TaskFault> {
         let bad = |_| TaskFault::new("imu log format");
-        self.fast = self
-            .log
-            .declare(cx, FAST_INDEX, &IMU_FAST_LOG)
+        self.log
+            .declare::<ImuFastLog>(cx, FAST_INDEX)
             .map_err(bad)?;
-        self.slow = self
-            .log
-            .declare(cx, SLOW_INDEX, &IMU_SLOW_LOG)
+        self.log
+            .declare::<ImuSlowLog>(cx, SLOW_INDEX)
             .map_err(bad)?;
         self.status.declare(&mut self.log, cx).map_err(bad)?;
         self.log.begin(cx);
@@ -83,8 +95,6 @@ impl<P: Read + ReadReady, S: RecordSink> Task for ImuTask<'_, P, S> {
             port,
             decoder,
             log,
-            fast,
-            slow,
             samples,
             ..
         } = self;
@@ -97,32 +107,38 @@ impl<P: Read + ReadReady, S: RecordSink> Task for ImuTask<'_, P, S> {
                 ImuFrame::Sample(sample) => {
                     samples.publish(sample);
                     let m = sample.measurement;
-                    log.record(cx, FAST_INDEX, fast, |w| {
-                        w.u8(sample.counter)
-                            .f32(m.rate_radps[0])
-                            .f32(m.rate_radps[1])
-                            .f32(m.rate_radps[2])
-                            .f32(m.specific_force_mps2[0])
-                            .f32(m.specific_force_mps2[1])
-                            .f32(m.specific_force_mps2[2])
-                            .u8(m.status.0)
-                    });
+                    let [p_rad_s, q_rad_s, r_rad_s] = m.rate_radps;
+                    let [fx_m_s2, fy_m_s2, fz_m_s2] = m.specific_force_mps2;
+                    let record = ImuFastLog {
+                        counter: sample.counter,
+                        p_rad_s,
+                        q_rad_s,
+                        r_rad_s,
+                        fx_m_s2,
+                        fy_m_s2,
+                        fz_m_s2,
+                        status: m.status.0,
+                    };
+                    log.log(cx, FAST_INDEX, &record);
                 }
                 ImuFrame::Slow(frame) => {
                     let r = frame.record;
-                    log.record(cx, SLOW_INDEX, slow, |w| {
-                        w.u16(r.record_counter)
-                            .f32(r.temperature_c)
-                            .f32(r.supply_v)
-                            .u16(r.serial_number)
-                            .f32(r.mean_rate_radps[0])
-                            .f32(r.mean_rate_radps[1])
-                            .f32(r.mean_rate_radps[2])
-                            .f32(r.mean_specific_force_mps2[0])
-                            .f32(r.mean_specific_force_mps2[1])
-                            .f32(r.mean_specific_force_mps2[2])
-                            .u16(r.built_in_test)
-                    });
+                    let [mean_p_rad_s, mean_q_rad_s, mean_r_rad_s] = r.mean_rate_radps;
+                    let [mean_fx_m_s2, mean_fy_m_s2, mean_fz_m_s2] = r.mean_specific_force_mps2;
+                    let record = ImuSlowLog {
+                        record_counter: r.record_counter,
+                        temperature_c: r.temperature_c,
+                        supply_v: r.supply_v,
+                        serial_number: r.serial_number,
+                        mean_p_rad_s,
+                        mean_q_rad_s,
+                        mean_r_rad_s,
+                        mean_fx_m_s2,
+                        mean_fy_m_s2,
+                        mean_fz_m_s2,
+                        built_in_test: r.built_in_test,
+                    };
+                    log.log(cx, SLOW_INDEX, &record);
                 }
             },
         );

@@ -5,19 +5,32 @@
 use super::task_log::TaskLog;
 use crate::comm::RecordSink;
 use crate::executive::{Task, TaskContext, TaskFault};
-use crate::logfmt::format::Format;
-use crate::logfmt::record::LogFormat;
 
 pub const HEALTH_FORMAT_INDEX: u8 = 1;
-pub const HEALTH_LOG: LogFormat = LogFormat::new(
-    "%hhu,%hhu,%hhu,%hhu,%hhu,%llu,%u,%u,%u,%u,%u,%u,%.1f,%.1f,%u,%hhu",
-    "task,initialised,running,in_frame,alive,releases,overruns_budget,overruns_frame,\
-     overruns_missed,skipped,resets,faults,exec_mean_us,exec_max_us,log_dropped,degraded",
-);
+crate::log_record! {
+    /// One task's health snapshot, each task once a second.
+    pub struct TaskHealthLog {
+        task: u8 = "%hhu",
+        initialised: bool = "%hhu",
+        running: bool = "%hhu",
+        in_frame: bool = "%hhu",
+        alive: bool = "%hhu",
+        releases: u64 = "%llu",
+        overruns_budget: u32 = "%u",
+        overruns_frame: u32 = "%u",
+        overruns_missed: u32 = "%u",
+        skipped: u32 = "%u",
+        resets: u32 = "%u",
+        faults: u32 = "%u",
+        exec_mean_us: f32 = "%.1f",
+        exec_max_us: f32 = "%.1f",
+        log_dropped: u32 = "%u",
+        degraded: bool = "%hhu",
+    }
+}
 
 pub struct LoggingTask<S: RecordSink> {
     log: TaskLog<S>,
-    format: Format,
     interval_ns: u64,
     next_snapshot_ns: u64,
 }
@@ -27,7 +40,6 @@ impl<S: RecordSink> LoggingTask<S> {
     pub fn new(sink: S, interval_ns: u64) -> Self {
         Self {
             log: TaskLog::new(sink),
-            format: Format::EMPTY,
             interval_ns: interval_ns.max(1),
             next_snapshot_ns: 0,
         }
@@ -42,33 +54,33 @@ impl<S: RecordSink> LoggingTask<S> {
             let alive = health.alive(index);
             let dropped = health.log_dropped(index);
             let degraded = health.degraded(index).is_some();
-            self.log.record(cx, HEALTH_FORMAT_INDEX, &self.format, |w| {
-                w.u8(index as u8)
-                    .u8(u8::from(h.initialised))
-                    .u8(u8::from(h.running))
-                    .u8(u8::from(h.in_frame))
-                    .u8(u8::from(alive))
-                    .u64(h.releases)
-                    .u32(h.overruns.budget)
-                    .u32(h.overruns.frame)
-                    .u32(h.overruns.missed)
-                    .u32(h.skipped)
-                    .u32(h.resets)
-                    .u32(h.faults)
-                    .f32(h.exec.mean_ns() as f32 / 1e3)
-                    .f32(h.exec.max_ns as f32 / 1e3)
-                    .u32(dropped)
-                    .u8(u8::from(degraded))
-            });
+            let record = TaskHealthLog {
+                task: index as u8,
+                initialised: h.initialised,
+                running: h.running,
+                in_frame: h.in_frame,
+                alive,
+                releases: h.releases,
+                overruns_budget: h.overruns.budget,
+                overruns_frame: h.overruns.frame,
+                overruns_missed: h.overruns.missed,
+                skipped: h.skipped,
+                resets: h.resets,
+                faults: h.faults,
+                exec_mean_us: h.exec.mean_ns() as f32 / 1e3,
+                exec_max_us: h.exec.max_ns as f32 / 1e3,
+                log_dropped: dropped,
+                degraded,
+            };
+            self.log.log(cx, HEALTH_FORMAT_INDEX, &record);
         }
     }
 }
 
 impl<S: RecordSink> Task for LoggingTask<S> {
     fn init(&mut self, cx: &mut TaskContext<'_>) -> Result<(), TaskFault> {
-        self.format = self
-            .log
-            .declare(cx, HEALTH_FORMAT_INDEX, &HEALTH_LOG)
+        self.log
+            .declare::<TaskHealthLog>(cx, HEALTH_FORMAT_INDEX)
             .map_err(|_| TaskFault::new("health log format"))?;
         self.log.begin(cx);
         self.next_snapshot_ns = cx.now_ns;

@@ -14,6 +14,8 @@ pub mod imu;
 pub mod logging;
 pub mod servo;
 pub mod tap;
+#[cfg(test)]
+mod record_tests;
 pub mod task_log;
 pub mod telemetry;
 

@@ -16,19 +16,39 @@ use crate::devices::servo::{
     ServoDecoder, pulse_us_to_surface, pulse_us_to_throttle,
 };
 use crate::executive::{Task, TaskContext, TaskFault};
-use crate::logfmt::format::Format;
-use crate::logfmt::record::LogFormat;
 use embedded_io::{Read, ReadReady, Write, WriteReady};
 
-pub const SERVO_PILOT_LOG: LogFormat = LogFormat::new(
-    "%hhu,%hu,%hu,%hu,%hu,%hu,%hu,%hu,%hu,%hhu,%.3f,%.3f,%.3f,%.3f,%.3f,%.3f",
-    "counter,ch1_us,ch2_us,ch3_us,ch4_us,ch5_us,ch6_us,ch7_us,ch8_us,auto,aileron,elevator,\
-     throttle,rudder,batt_avionics_v,batt_servo_v",
-);
-pub const SERVO_COMMAND_LOG: LogFormat = LogFormat::new(
-    "%hhu,%.3f,%.3f,%.3f,%.3f",
-    "ready,aileron_cmd,elevator_cmd,throttle_cmd,rudder_cmd",
-);
+crate::log_record! {
+    /// Each pilot report from the servo board (format 1).
+    pub struct ServoPilotLog {
+        counter: u8 = "%hhu",
+        ch1_us: u16 = "%hu",
+        ch2_us: u16 = "%hu",
+        ch3_us: u16 = "%hu",
+        ch4_us: u16 = "%hu",
+        ch5_us: u16 = "%hu",
+        ch6_us: u16 = "%hu",
+        ch7_us: u16 = "%hu",
+        ch8_us: u16 = "%hu",
+        auto: bool = "%hhu",
+        aileron: f32 = "%.3f",
+        elevator: f32 = "%.3f",
+        throttle: f32 = "%.3f",
+        rudder: f32 = "%.3f",
+        batt_avionics_v: f32 = "%.3f",
+        batt_servo_v: f32 = "%.3f",
+    }
+}
+crate::log_record! {
+    /// Each command sent to the servo board (format 2).
+    pub struct ServoCommandLog {
+        ready: bool = "%hhu",
+        aileron_cmd: f32 = "%.3f",
+        elevator_cmd: f32 = "%.3f",
+        throttle_cmd: f32 = "%.3f",
+        rudder_cmd: f32 = "%.3f",
+    }
+}
 pub const PILOT_INDEX: u8 = 1;
 pub const COMMAND_INDEX: u8 = 2;
 pub const STATUS_INDEX: u8 = 3;
@@ -110,8 +130,6 @@ pub struct ServoTask<'a, P, S: RecordSink> {
     decoder: ServoDecoder,
     writer: CommandWriter,
     log: TaskLog<S>,
-    pilot_format: Format,
-    command_format: Format,
     status: DeviceStatusLog,
     commands: SlotReader<'a, ComputerCommand>,
     pilot: &'a LatestSlot<PilotInput>,
@@ -135,8 +153,6 @@ where
             decoder: ServoDecoder::new(stale_timeout_ns),
             writer: CommandWriter::new(),
             log: TaskLog::new(log),
-            pilot_format: Format::EMPTY,
-            command_format: Format::EMPTY,
             status: DeviceStatusLog::new(STATUS_INDEX),
             commands: commands.reader(),
             pilot,
@@ -156,14 +172,14 @@ where
         );
         self.writer.submit_servo_command(&frame);
         let c = command.controls;
-        self.log
-            .record(cx, COMMAND_INDEX, &self.command_format, |w| {
-                w.u8(u8::from(command.ready))
-                    .f32(c.aileron)
-                    .f32(c.elevator)
-                    .f32(c.throttle)
-                    .f32(c.rudder)
-            });
+        let record = ServoCommandLog {
+            ready: command.ready,
+            aileron_cmd: c.aileron,
+            elevator_cmd: c.elevator,
+            throttle_cmd: c.throttle,
+            rudder_cmd: c.rudder,
+        };
+        self.log.log(cx, COMMAND_INDEX, &record);
         self.writer
             .poll(&mut self.port)
             .map_err(|_| TaskFault::new("servo port error"))
@@ -177,13 +193,11 @@ where
 {
     fn init(&mut self, cx: &mut TaskContext<'_>) -> Result<(), TaskFault> {
         let bad = |_| TaskFault::new("servo log format");
-        self.pilot_format = self
-            .log
-            .declare(cx, PILOT_INDEX, &SERVO_PILOT_LOG)
+        self.log
+            .declare::<ServoPilotLog>(cx, PILOT_INDEX)
             .map_err(bad)?;
-        self.command_format = self
-            .log
-            .declare(cx, COMMAND_INDEX, &SERVO_COMMAND_LOG)
+        self.log
+            .declare::<ServoCommandLog>(cx, COMMAND_INDEX)
             .map_err(bad)?;
         self.status.declare(&mut self.log, cx).map_err(bad)?;
         self.log.begin(cx);
@@ -197,7 +211,6 @@ where
             port,
             decoder,
             log,
-            pilot_format,
             pilot,
             last_pilot,
             ..
@@ -219,17 +232,26 @@ where
                     mode,
                 });
                 let ch = report.pilot_us;
-                log.record(cx, PILOT_INDEX, pilot_format, |w| {
-                    ch.iter()
-                        .fold(w.u8(frame.counter), |w, &us| w.u16(us))
-                        .u8(u8::from(mode == ControlMode::Auto))
-                        .f32(sticks.aileron)
-                        .f32(sticks.elevator)
-                        .f32(sticks.throttle)
-                        .f32(sticks.rudder)
-                        .f32(report.logic_battery_v)
-                        .f32(report.servo_battery_v)
-                });
+                let [ch1_us, ch2_us, ch3_us, ch4_us, ch5_us, ch6_us, ch7_us, ch8_us] = ch;
+                let record = ServoPilotLog {
+                    counter: frame.counter,
+                    ch1_us,
+                    ch2_us,
+                    ch3_us,
+                    ch4_us,
+                    ch5_us,
+                    ch6_us,
+                    ch7_us,
+                    ch8_us,
+                    auto: mode == ControlMode::Auto,
+                    aileron: sticks.aileron,
+                    elevator: sticks.elevator,
+                    throttle: sticks.throttle,
+                    rudder: sticks.rudder,
+                    batt_avionics_v: report.logic_battery_v,
+                    batt_servo_v: report.servo_battery_v,
+                };
+                log.log(cx, PILOT_INDEX, &record);
             },
         );
         self.status.after_step(&mut self.log, cx, &self.decoder);

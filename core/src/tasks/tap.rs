@@ -1,34 +1,28 @@
 //! The telemetry tap: a task's log sink that also keeps, for the link, the latest record of
 //! each of the task's formats.
 //!
-//! Telemetry shows exactly what is logged: the values a [`TaskData`](crate::link::messages::TaskData)
-//! carries are decoded from the very bytes that went to the log, with the log's TIME, and the
-//! column names are the log's Format Comment. So the link and the log cannot disagree, and no
-//! task has to know about the link.
-//!
-//! A task may hand its sink several records in one slice (a format's declaration is its
-//! Definition followed by its Comment), so the tap walks every record of the slice by its
-//! header length. Formats are parsed once, when declared, not on every send.
+//! Telemetry shows exactly what is logged: a [`TaskData`](crate::link::messages::TaskData)
+//! carries the typed values of the record the log took, with the log's TIME, and the column
+//! names are the record's declaration ([`log_record!`](crate::log_record)), the same text the
+//! log's Format Comment holds. The task's log hands both on as it logs
+//! ([`RecordSink::declared`], [`RecordSink::logged`]): nothing re-parses the bytes, so the
+//! link and the log cannot disagree, and no task has to know about the link.
 
 use crate::comm::RecordSink;
 use crate::link::messages::{MAX_COLUMNS_LEN, MAX_TASK_VALUES, Value};
-use crate::logfmt::format::{Format, trim_nuls};
-use crate::logfmt::printf;
-use crate::logfmt::record::{TIME_LEN, Time, kind};
+use crate::logfmt::record::Time;
+use crate::logfmt::{LogFormat, MAX_RECORD_FIELDS, printf};
 use core::cell::RefCell;
 
-/// Longest data block a tap keeps (the widest shipped format is ~100 bytes).
-pub const TAP_DATA: usize = 192;
 /// Formats a tap follows per task (the IMU logs three: fast, slow, device status).
 pub const TAP_FORMATS: usize = 4;
 
-/// One format of a task, as declared in its log, with its latest data block.
+/// One format of a task, as declared in its log, with its latest values.
 #[derive(Clone, Debug)]
 struct TappedFormat {
     index: u8,
-    format: Format,
-    columns: heapless::Vec<u8, MAX_COLUMNS_LEN>,
-    latest: Option<(Time, heapless::Vec<u8, TAP_DATA>)>,
+    columns: &'static str,
+    latest: Option<(Time, heapless::Vec<printf::Value, MAX_RECORD_FIELDS>)>,
     /// Data blocks seen, and the count when the telemetry task last took one.
     records: u32,
     records_sent: u32,
@@ -55,23 +49,40 @@ impl Tap {
         }
     }
 
-    /// Takes note of every record in `records` (one or several whole records).
-    pub fn take_records(&self, mut records: &[u8]) {
+    /// A format declared at `index`. A redefinition starts over: the old data belong to the
+    /// old format.
+    pub fn declare(&self, index: u8, format: &LogFormat) {
         let Ok(mut formats) = self.formats.try_borrow_mut() else {
             return;
         };
-        while let [record_kind, index, l0, l1, rest @ ..] = records {
-            let len = usize::from(u16::from_le_bytes([*l0, *l1]));
-            let timed = matches!(
-                *record_kind,
-                kind::DATA_BLOCK | kind::BYTE_ARRAY | kind::BEGIN_DATA | kind::END_DATA
-            );
-            let body_len = if timed { TIME_LEN + len } else { len };
-            let Some(body) = rest.get(..body_len) else {
-                return;
-            };
-            take_record(&mut formats, *record_kind, *index, body);
-            records = rest.get(body_len..).unwrap_or_default();
+        let fresh = TappedFormat {
+            index,
+            columns: format.columns,
+            latest: None,
+            records: 0,
+            records_sent: 0,
+        };
+        match formats.iter_mut().find(|f| f.index == index) {
+            Some(f) => *f = fresh,
+            // More formats than a tap follows: the extra ones are logged, not sent.
+            None => {
+                let _ = formats.push(fresh);
+            }
+        }
+    }
+
+    /// The values of a record the log took.
+    pub fn take_values(&self, index: u8, time: Time, values: &[printf::Value]) {
+        let Ok(mut formats) = self.formats.try_borrow_mut() else {
+            return;
+        };
+        let Some(f) = formats.iter_mut().find(|f| f.index == index) else {
+            return;
+        };
+        let mut kept = heapless::Vec::new();
+        if kept.extend_from_slice(values).is_ok() {
+            f.latest = Some((time, kept));
+            f.records = f.records.wrapping_add(1);
         }
     }
 
@@ -87,7 +98,8 @@ impl Tap {
     pub fn columns(&self, format_index: u8) -> Option<heapless::Vec<u8, MAX_COLUMNS_LEN>> {
         let formats = self.formats.try_borrow().ok()?;
         let f = formats.iter().find(|f| f.index == format_index)?;
-        Some(f.columns.clone())
+        let text = f.columns.as_bytes();
+        heapless::Vec::from_slice(text.get(..MAX_COLUMNS_LEN).unwrap_or(text)).ok()
     }
 
     /// The latest record of the format at `format_index` as link values; with `only_fresh`,
@@ -98,8 +110,8 @@ impl Tap {
         if only_fresh && f.records == f.records_sent {
             return None;
         }
-        let (time, data) = f.latest.as_ref()?;
-        let values = decode_values(&f.format, data)?;
+        let (time, values) = f.latest.as_ref()?;
+        let values = values.iter().map(|&v| link_value(v)).take(MAX_TASK_VALUES).collect();
         let time = *time;
         f.records_sent = f.records;
         Some(TappedRecord {
@@ -110,90 +122,21 @@ impl Tap {
     }
 }
 
-fn take_record(
-    formats: &mut heapless::Vec<TappedFormat, TAP_FORMATS>,
-    record_kind: u8,
-    index: u8,
-    body: &[u8],
-) {
-    let slot = formats.iter().position(|f| f.index == index);
-    match record_kind {
-        kind::FORMAT_DEFINITION => {
-            // A redefinition starts over: the old columns and data belong to the old format.
-            let fresh = TappedFormat {
-                index,
-                format: Format::parse_bytes(body).unwrap_or(Format::EMPTY),
-                columns: heapless::Vec::new(),
-                latest: None,
-                records: 0,
-                records_sent: 0,
-            };
-            match slot.and_then(|at| formats.get_mut(at)) {
-                Some(f) => *f = fresh,
-                None => {
-                    // More formats than a tap follows: the extra ones are logged, not sent.
-                    let _ = formats.push(fresh);
-                }
-            }
-        }
-        kind::FORMAT_COMMENT => {
-            if let Some(f) = slot.and_then(|at| formats.get_mut(at)) {
-                let text = trim_nuls(body);
-                f.columns.clear();
-                let _ = f
-                    .columns
-                    .extend_from_slice(text.get(..MAX_COLUMNS_LEN).unwrap_or(text));
-            }
-        }
-        kind::DATA_BLOCK => {
-            let Some(f) = slot.and_then(|at| formats.get_mut(at)) else {
-                return;
-            };
-            let (Some(time), Some(data)) = (body.get(..TIME_LEN), body.get(TIME_LEN..)) else {
-                return;
-            };
-            let mut time_bytes = [0u8; TIME_LEN];
-            time_bytes.copy_from_slice(time);
-            let mut kept = heapless::Vec::new();
-            if kept.extend_from_slice(data).is_ok() {
-                f.latest = Some((Time::from_bytes(time_bytes), kept));
-                f.records = f.records.wrapping_add(1);
-            }
-        }
-        _ => {}
+/// A log value as a link value: exact for every field type but 64-bit integers, which
+/// travel as f64 (exact below 2^53).
+fn link_value(value: printf::Value) -> Value {
+    match value {
+        printf::Value::I8(v) => Value::I32(i32::from(v)),
+        printf::Value::U8(v) => Value::U32(u32::from(v)),
+        printf::Value::I16(v) => Value::I32(i32::from(v)),
+        printf::Value::U16(v) => Value::U32(u32::from(v)),
+        printf::Value::I32(v) => Value::I32(v),
+        printf::Value::U32(v) => Value::U32(v),
+        printf::Value::I64(v) => Value::F64(v as f64),
+        printf::Value::U64(v) => Value::F64(v as f64),
+        printf::Value::F32(v) => Value::F32(v),
+        printf::Value::F64(v) => Value::F64(v),
     }
-}
-
-/// A data block's fields as link values: exact for every field type but 64-bit integers,
-/// which travel as f64 (exact below 2^53).
-fn decode_values(format: &Format, data: &[u8]) -> Option<heapless::Vec<Value, MAX_TASK_VALUES>> {
-    if data.len() != format.data_len() || format.fields().is_empty() {
-        return None;
-    }
-    let mut values = heapless::Vec::new();
-    let mut at = 0usize;
-    for field in format.fields() {
-        let size = field.ty.size();
-        let bytes = data.get(at..at.checked_add(size)?)?;
-        at += size;
-        let value = match printf::Value::decode(field.ty, bytes)? {
-            printf::Value::I8(v) => Value::I32(i32::from(v)),
-            printf::Value::U8(v) => Value::U32(u32::from(v)),
-            printf::Value::I16(v) => Value::I32(i32::from(v)),
-            printf::Value::U16(v) => Value::U32(u32::from(v)),
-            printf::Value::I32(v) => Value::I32(v),
-            printf::Value::U32(v) => Value::U32(v),
-            printf::Value::I64(v) => Value::F64(v as f64),
-            printf::Value::U64(v) => Value::F64(v as f64),
-            printf::Value::F32(v) => Value::F32(v),
-            printf::Value::F64(v) => Value::F64(v),
-        };
-        // A format wider than a message carries: the first columns go, the rest are logged.
-        if values.push(value).is_err() {
-            break;
-        }
-    }
-    Some(values)
 }
 
 /// A task's log sink that also keeps the task's latest data for telemetry.
@@ -203,46 +146,43 @@ pub struct TappedSink<'a, S> {
 }
 
 impl<S: RecordSink> RecordSink for TappedSink<'_, S> {
-    /// The tap sees only what the log took: a record a full ring dropped is in neither, so
-    /// the ground never shows a value the log does not have.
     fn push_record(&mut self, record: &[u8]) -> bool {
-        let logged = self.inner.push_record(record);
-        if logged {
-            self.tap.take_records(record);
-        }
-        logged
+        self.inner.push_record(record)
+    }
+
+    fn declared(&mut self, index: u8, format: &LogFormat) {
+        self.inner.declared(index, format);
+        self.tap.declare(index, format);
+    }
+
+    /// Called only for what the log took: a record a full ring dropped is in neither, so the
+    /// ground never shows a value the log does not have.
+    fn logged(&mut self, index: u8, time: Time, values: &[printf::Value]) {
+        self.inner.logged(index, time, values);
+        self.tap.take_values(index, time, values);
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::logfmt::record::{DataBlockWriter, LogFormat, encode_begin_data};
+    use crate::executive::{HealthBoard, TaskContext};
+    use crate::logfmt::LogRecord;
+    use crate::tasks::task_log::TaskLog;
 
-    const FORMAT: LogFormat = LogFormat::new("%hhu,%.4f,%.8lf,%hd", "counter,p_rad_s,lat_deg,t_c");
-    const OTHER: LogFormat = LogFormat::new("%u", "frames");
-
-    fn declare(tap: &Tap, index: u8, format: &LogFormat) {
-        let mut buf = [0u8; 256];
-        let len = format.encode_declaration(&mut buf, index).expect("encodes");
-        // Definition and Comment arrive in one slice, as a task's log hands them on.
-        tap.take_records(&buf[..len]);
+    crate::log_record! {
+        struct Sample {
+            counter: u8 = "%hhu",
+            p_rad_s: f32 = "%.4f",
+            lat_deg: f64 = "%.8lf",
+            t_c: i16 = "%hd",
+        }
     }
 
-    fn data(
-        tap: &Tap,
-        index: u8,
-        t_ns: u64,
-        fill: impl for<'b, 'f> FnOnce(DataBlockWriter<'b, 'f>) -> DataBlockWriter<'b, 'f>,
-    ) {
-        let format = if index == 1 { FORMAT } else { OTHER }
-            .parse()
-            .expect("parses");
-        let mut buf = [0u8; 256];
-        let len = fill(DataBlockWriter::new(&mut buf, index, t_ns, &format))
-            .finish()
-            .expect("encodes");
-        tap.take_records(&buf[..len]);
+    crate::log_record! {
+        struct Other {
+            frames: u32 = "%u",
+        }
     }
 
     /// A log ring that takes records until it is "full".
@@ -258,57 +198,59 @@ mod tests {
         }
     }
 
-    #[test]
-    fn a_record_the_log_dropped_is_not_shown_on_the_link_either() {
-        let tap = Tap::new();
-        declare(&tap, 1, &FORMAT);
-        let format = FORMAT.parse().expect("parses");
-        let mut sink = TappedSink {
-            inner: Ring { room: 1 },
-            tap: &tap,
+    fn at<R>(health: &HealthBoard, now_ns: u64, f: impl FnOnce(&TaskContext<'_>) -> R) -> R {
+        let cx = TaskContext {
+            now_ns,
+            frame: 0,
+            task: 0,
+            health,
+            log_time_origin_ns: 0,
         };
-        for (t_ns, counter) in [(1_000, 1u8), (2_000, 2)] {
-            let mut buf = [0u8; 256];
-            let len = DataBlockWriter::new(&mut buf, 1, t_ns, &format)
-                .u8(counter)
-                .f32(0.0)
-                .f64(0.0)
-                .i16(0)
-                .finish()
-                .expect("encodes");
-            sink.push_record(&buf[..len]);
+        f(&cx)
+    }
+
+    fn sample(counter: u8) -> Sample {
+        Sample {
+            counter,
+            p_rad_s: -0.125,
+            lat_deg: 47.397_742_1,
+            t_c: -12,
         }
-        // The second record found the ring full: the latest on the link is the first.
-        let latest = tap.take_latest(1, false).expect("one was logged");
-        assert_eq!(latest.values[0], Value::U32(1));
-        assert_eq!(
-            latest.time,
-            Time {
-                sec: 0,
-                nsec: 1_000
-            }
-        );
     }
 
     #[test]
-    fn a_declaration_in_one_slice_gives_both_the_format_and_its_columns() {
+    fn a_record_the_log_dropped_is_not_shown_on_the_link_either() {
         let tap = Tap::new();
-        declare(&tap, 1, &FORMAT);
+        let health = HealthBoard::new(1);
+        let mut log = TaskLog::new(TappedSink {
+            inner: Ring { room: 2 },
+            tap: &tap,
+        });
+        at(&health, 0, |cx| log.declare::<Sample>(cx, 1)).expect("declares");
+        at(&health, 1_000, |cx| log.log(cx, 1, &sample(1)));
+        // The second record finds the ring full: the latest on the link is the first.
+        at(&health, 2_000, |cx| log.log(cx, 1, &sample(2)));
+        let latest = tap.take_latest(1, false).expect("one was logged");
+        assert_eq!(latest.values[0], Value::U32(1));
+        assert_eq!(latest.time, Time { sec: 0, nsec: 1_000 });
+    }
+
+    #[test]
+    fn the_declaration_gives_the_columns_and_the_record_its_typed_values() {
+        let tap = Tap::new();
+        let health = HealthBoard::new(1);
+        let mut log = TaskLog::new(TappedSink {
+            inner: Ring { room: 10 },
+            tap: &tap,
+        });
+        at(&health, 0, |cx| log.declare::<Sample>(cx, 1)).expect("declares");
         assert_eq!(
             tap.columns(1).as_deref(),
             Some(&b"counter,p_rad_s,lat_deg,t_c"[..])
         );
-        data(&tap, 1, 12_340_000_000, |w| {
-            w.u8(7).f32(-0.125).f64(47.397_742_1).i16(-12)
-        });
+        at(&health, 12_340_000_000, |cx| log.log(cx, 1, &sample(7)));
         let latest = tap.take_latest(1, true).expect("fresh");
-        assert_eq!(
-            latest.time,
-            Time {
-                sec: 12,
-                nsec: 340_000_000
-            }
-        );
+        assert_eq!(latest.time, Time { sec: 12, nsec: 340_000_000 });
         assert_eq!(
             latest.values.as_slice(),
             [
@@ -323,15 +265,20 @@ mod tests {
     #[test]
     fn each_format_keeps_its_own_latest_record_and_freshness() {
         let tap = Tap::new();
-        declare(&tap, 1, &FORMAT);
-        declare(&tap, 2, &OTHER);
+        let health = HealthBoard::new(1);
+        let mut log = TaskLog::new(TappedSink {
+            inner: Ring { room: 10 },
+            tap: &tap,
+        });
+        at(&health, 0, |cx| {
+            log.declare::<Sample>(cx, 1)?;
+            log.declare::<Other>(cx, 2)
+        })
+        .expect("declares");
         assert_eq!(tap.format_indices().as_slice(), [1, 2]);
-        let mut buf = [0u8; 16];
-        let len = encode_begin_data(&mut buf, 0).expect("encodes");
-        tap.take_records(&buf[..len]);
-        data(&tap, 1, 1, |w| w.u8(1).f32(0.0).f64(0.0).i16(0));
-        data(&tap, 2, 2, |w| w.u32(99));
-        data(&tap, 1, 3, |w| w.u8(2).f32(0.0).f64(0.0).i16(0));
+        at(&health, 1, |cx| log.log(cx, 1, &sample(1)));
+        at(&health, 2, |cx| log.log(cx, 2, &Other { frames: 99 }));
+        at(&health, 3, |cx| log.log(cx, 1, &sample(2)));
         assert_eq!(
             tap.take_latest(2, true).expect("fresh").values[0],
             Value::U32(99)
@@ -349,20 +296,14 @@ mod tests {
     }
 
     #[test]
-    fn a_redefinition_forgets_the_old_data_and_damage_is_ignored() {
+    fn a_redefinition_forgets_the_old_data_and_undeclared_formats_are_ignored() {
         let tap = Tap::new();
-        declare(&tap, 1, &FORMAT);
-        data(&tap, 1, 1, |w| w.u8(1).f32(0.0).f64(0.0).i16(0));
-        declare(&tap, 1, &FORMAT);
+        tap.declare(1, &Sample::FORMAT);
+        tap.take_values(1, Time::default(), &[printf::Value::U8(1)]);
+        assert!(tap.take_latest(1, false).is_some());
+        tap.declare(1, &Sample::FORMAT);
         assert!(tap.take_latest(1, false).is_none());
-        // A header whose length runs past the slice, an unknown kind, random bytes: no panic,
-        // nothing taken.
-        tap.take_records(&[kind::DATA_BLOCK, 1, 0xFF, 0xFF, 1, 2, 3]);
-        tap.take_records(&[0x42, 1, 0, 0]);
-        tap.take_records(&[1, 2, 3]);
-        assert!(tap.take_latest(1, false).is_none());
-        // A data block of the wrong length for its format is not decoded.
-        tap.take_records(&[kind::DATA_BLOCK, 1, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 5]);
-        assert!(tap.take_latest(1, false).is_none());
+        tap.take_values(9, Time::default(), &[printf::Value::U8(1)]);
+        assert!(tap.take_latest(9, false).is_none());
     }
 }

@@ -1,12 +1,10 @@
-//! A task's log: declares its formats once, stamps records with the log clock, and counts
-//! every record its ring could not take in the task's health (nothing is dropped silently).
+//! A task's log: declares its records once, stamps them with the log clock, and counts every
+//! record its ring could not take in the task's health (nothing is dropped silently).
 
 use crate::comm::RecordSink;
 use crate::executive::TaskContext;
-use crate::logfmt::format::Format;
-use crate::logfmt::record::{
-    DataBlockWriter, EncodeError, LogFormat, encode_begin_data, encode_end_data,
-};
+use crate::logfmt::record::{EncodeError, Time, encode_begin_data, encode_end_data};
+use crate::logfmt::{LogRecord, encode_record, record_values};
 
 /// Room for one record: the largest format declaration or data block a task writes.
 pub const TASK_LOG_BUFFER: usize = 768;
@@ -24,25 +22,28 @@ impl<S: RecordSink> TaskLog<S> {
         }
     }
 
-    fn push(&mut self, cx: &TaskContext<'_>, len: usize) {
+    fn push(&mut self, cx: &TaskContext<'_>, len: usize) -> bool {
         let record = self.buf.get(..len).unwrap_or_default();
-        if !self.sink.push_record(record) {
+        let taken = self.sink.push_record(record);
+        if !taken {
             cx.health.note_log_drop(cx.task);
         }
+        taken
     }
 
-    /// Writes a format's definition and column names at `index`; returns it parsed for
-    /// [`record`](Self::record).
-    pub fn declare(
+    /// Writes record `R`'s Format Definition and column names at `index`, after checking
+    /// the declaration (an unsound one is a bug its task's test catches: `Err`).
+    pub fn declare<R: LogRecord + Default>(
         &mut self,
         cx: &TaskContext<'_>,
         index: u8,
-        format: &LogFormat,
-    ) -> Result<Format, EncodeError> {
-        let parsed = format.parse()?;
-        let len = format.encode_declaration(&mut self.buf, index)?;
-        self.push(cx, len);
-        Ok(parsed)
+    ) -> Result<(), EncodeError> {
+        R::check()?;
+        let len = R::FORMAT.encode_declaration(&mut self.buf, index)?;
+        if self.push(cx, len) {
+            self.sink.declared(index, &R::FORMAT);
+        }
+        Ok(())
     }
 
     /// Begin Data: the task starts logging.
@@ -59,19 +60,17 @@ impl<S: RecordSink> TaskLog<S> {
         }
     }
 
-    /// One data block of `format` at `index`, its fields filled in by `fill` in format
-    /// order. A record that does not encode (a field missing or of the wrong type: a bug the
-    /// task's tests catch) is counted as dropped.
-    pub fn record(
-        &mut self,
-        cx: &TaskContext<'_>,
-        index: u8,
-        format: &Format,
-        fill: impl for<'b, 'f> FnOnce(DataBlockWriter<'b, 'f>) -> DataBlockWriter<'b, 'f>,
-    ) {
+    /// One Data Block of the record declared at `index`. A record that does not encode (a
+    /// time past 2038) is counted as dropped.
+    pub fn log<R: LogRecord>(&mut self, cx: &TaskContext<'_>, index: u8, record: &R) {
         let t = cx.log_time_ns();
-        match fill(DataBlockWriter::new(&mut self.buf, index, t, format)).finish() {
-            Ok(len) => self.push(cx, len),
+        match encode_record(&mut self.buf, index, t, record) {
+            Ok(len) => {
+                if self.push(cx, len) {
+                    let time = Time::from_ns(t).unwrap_or_default();
+                    self.sink.logged(index, time, &record_values(record));
+                }
+            }
             Err(_) => cx.health.note_log_drop(cx.task),
         }
     }

@@ -31,8 +31,6 @@ use crate::link::messages::{
 };
 use crate::link::params::{ParamTable, SetParamResult};
 use crate::link::telemetry::{Due, TelemetrySchedule, VehicleEnvelopes};
-use crate::logfmt::format::Format;
-use crate::logfmt::record::LogFormat;
 use crate::schedule::FrameTable;
 use crate::schedule::analysis::MAX_TASKS;
 use crate::tasks::health::WatchdogReport;
@@ -76,14 +74,6 @@ pub struct TelemetryConfig {
     pub duration_ns: u64,
 }
 
-/// `link.bin`, once a second and at the end: the link's counters (`LinkCounters`, in wire
-/// order), so what was refused and why is in the flight's log, not only on the ground.
-pub const LINK_LOG: LogFormat = LogFormat::new(
-    "%u,%u,%u,%u,%u,%u,%u,%u,%u,%u,%u,%u,%u,%u,%u,%u",
-    "received,accepted,bad_crc,malformed,wrong_vehicle,unsigned,bad_signature,wrong_run,\
-     replayed,too_many_senders,out_of_range,unknown_param,wrong_type,telemetry_sent,\
-     telemetry_send_failed,rate_limited",
-);
 const LINK_INDEX: u8 = 1;
 const LINK_LOG_INTERVAL_NS: u64 = 1_000_000_000;
 
@@ -103,7 +93,8 @@ struct OverrunReport {
 pub struct TelemetryTask<'a, P, S: RecordSink> {
     port: P,
     log: TaskLog<S>,
-    log_format: Format,
+    /// The log is declared once, by the first init (a reset does not restart it).
+    declared: bool,
     logged_ns: Option<u64>,
     table: &'static FrameTable,
     shared: LinkShared<'a>,
@@ -119,7 +110,7 @@ pub struct TelemetryTask<'a, P, S: RecordSink> {
 }
 
 impl<'a, P: DatagramPort, S: RecordSink> TelemetryTask<'a, P, S> {
-    /// `log` takes `link.bin` ([`LINK_LOG`]).
+    /// `log` takes `link.bin` ([`LinkCounters`]).
     pub fn new(
         port: P,
         log: S,
@@ -139,7 +130,7 @@ impl<'a, P: DatagramPort, S: RecordSink> TelemetryTask<'a, P, S> {
         Self {
             port,
             log: TaskLog::new(log),
-            log_format: Format::EMPTY,
+            declared: false,
             logged_ns: None,
             table,
             shared,
@@ -358,10 +349,8 @@ impl<'a, P: DatagramPort, S: RecordSink> TelemetryTask<'a, P, S> {
 
     fn log_counters(&mut self, cx: &TaskContext<'_>) {
         self.logged_ns = Some(cx.now_ns);
-        let counters = self.counters().as_array();
-        self.log.record(cx, LINK_INDEX, &self.log_format, |w| {
-            counters.iter().fold(w, |w, c| w.u32(*c))
-        });
+        let counters = self.counters();
+        self.log.log(cx, LINK_INDEX, &counters);
     }
 
     fn tap(&self, task_index: u8) -> Option<&'a Tap> {
@@ -490,11 +479,11 @@ impl<'a, P: DatagramPort, S: RecordSink> TelemetryTask<'a, P, S> {
 
 impl<P: DatagramPort, S: RecordSink> Task for TelemetryTask<'_, P, S> {
     fn init(&mut self, cx: &mut TaskContext<'_>) -> Result<(), TaskFault> {
-        if self.log_format.fields().is_empty() {
-            self.log_format = self
-                .log
-                .declare(cx, LINK_INDEX, &LINK_LOG)
+        if !self.declared {
+            self.log
+                .declare::<LinkCounters>(cx, LINK_INDEX)
                 .map_err(|_| TaskFault::new("link log format"))?;
+            self.declared = true;
             self.log.begin(cx);
         }
         if self.schedule.is_none() {
