@@ -6,26 +6,48 @@ use crate::logwriter::LogStream;
 use crate::platform::{Platform, RtConfig, RtReport};
 use crate::serial::{DevicePort, RX_RING, TX_RING};
 use skyframe_core::logfmt::record::{
-    DataBlockWriter, EncodeError, LogFormat, MAX_RECORD_LEN, encode_begin_data, encode_end_data,
+    EncodeError, MAX_RECORD_LEN, encode_begin_data, encode_end_data,
 };
+use skyframe_core::logfmt::{LogRecord, encode_record};
 use skyframe_sim::VirtualClock;
 use skyframe_sim::plant::{GeodeticPosition, Truth};
 use skyframe_sim::timer::SimTimer;
 use skyframe_sim::world::{Device, DeviceLink, SimWorld};
 use std::sync::Mutex;
 
-/// Ground truth, for scoring estimates (`docs/log-streams.md`, `truth.bin`).
-pub const TRUTH_LOG: LogFormat = LogFormat::new(
-    "%.3lf,%.3lf,%.3lf,%.3f,%.3f,%.3f,%.5f,%.5f,%.5f,%.5f,%.5f,%.5f,%.3f,%.5f,%.5f,%.3f,%.3f,%.3f,%hhu",
-    "north_m,east_m,down_m,vn_m_s,ve_m_s,vd_m_s,roll_rad,pitch_rad,yaw_rad,p_rad_s,q_rad_s,\
-     r_rad_s,airspeed_m_s,alpha_rad,beta_rad,wind_n_m_s,wind_e_m_s,wind_d_m_s,on_ground",
-);
-/// Where truth positions are measured from, once after each Begin Data: scoring needs it to
-/// place the estimates, whose origin is their first GPS fix.
-pub const TRUTH_ORIGIN_LOG: LogFormat = LogFormat::new(
-    "%.8lf,%.8lf,%.3lf",
-    "origin_lat_deg,origin_lon_deg,origin_alt_m",
-);
+skyframe_core::log_record! {
+    /// Ground truth, for scoring estimates (`docs/log-streams.md`, `truth.bin`), at 50 Hz.
+    pub struct TruthRecord {
+        north_m: f64 = "%.3lf",
+        east_m: f64 = "%.3lf",
+        down_m: f64 = "%.3lf",
+        vn_m_s: f32 = "%.3f",
+        ve_m_s: f32 = "%.3f",
+        vd_m_s: f32 = "%.3f",
+        roll_rad: f32 = "%.5f",
+        pitch_rad: f32 = "%.5f",
+        yaw_rad: f32 = "%.5f",
+        p_rad_s: f32 = "%.5f",
+        q_rad_s: f32 = "%.5f",
+        r_rad_s: f32 = "%.5f",
+        airspeed_m_s: f32 = "%.3f",
+        alpha_rad: f32 = "%.5f",
+        beta_rad: f32 = "%.5f",
+        wind_n_m_s: f32 = "%.3f",
+        wind_e_m_s: f32 = "%.3f",
+        wind_d_m_s: f32 = "%.3f",
+        on_ground: bool = "%hhu",
+    }
+}
+skyframe_core::log_record! {
+    /// Where truth positions are measured from, once after each Begin Data: scoring needs it to
+    /// place the estimates, whose origin is their first GPS fix.
+    pub struct TruthOriginRecord {
+        origin_lat_deg: f64 = "%.8lf",
+        origin_lon_deg: f64 = "%.8lf",
+        origin_alt_m: f64 = "%.3lf",
+    }
+}
 pub const TRUTH_INDEX: u8 = 1;
 pub const TRUTH_ORIGIN_INDEX: u8 = 2;
 /// Truth at 50 Hz: finer than the estimator's outputs need, coarse enough to stay small.
@@ -172,28 +194,25 @@ fn truth_tap(
     time_origin_ns: u64,
     origin: GeodeticPosition,
 ) -> skyframe_sim::timer::TruthTap {
-    let format = TRUTH_LOG.parse().ok();
     let mut buf = vec![0u8; MAX_RECORD_LEN];
     fn push(stream: &mut LogStream, encoded: Result<usize, EncodeError>, buf: &[u8]) {
         if let Ok(n) = encoded {
             stream.push_record(buf.get(..n).unwrap_or_default());
         }
     }
-    let encoded = TRUTH_LOG.encode_declaration(&mut buf, TRUTH_INDEX);
+    let encoded = TruthRecord::FORMAT.encode_declaration(&mut buf, TRUTH_INDEX);
     push(&mut stream, encoded, &buf);
-    let encoded = TRUTH_ORIGIN_LOG.encode_declaration(&mut buf, TRUTH_ORIGIN_INDEX);
+    let encoded = TruthOriginRecord::FORMAT.encode_declaration(&mut buf, TRUTH_ORIGIN_INDEX);
     push(&mut stream, encoded, &buf);
     let encoded = encode_begin_data(&mut buf, time_origin_ns);
     push(&mut stream, encoded, &buf);
-    if let Ok(origin_format) = TRUTH_ORIGIN_LOG.parse() {
-        let encoded =
-            DataBlockWriter::new(&mut buf, TRUTH_ORIGIN_INDEX, time_origin_ns, &origin_format)
-                .f64(origin.lat_deg)
-                .f64(origin.lon_deg)
-                .f64(origin.alt_msl_m)
-                .finish();
-        push(&mut stream, encoded, &buf);
-    }
+    let origin = TruthOriginRecord {
+        origin_lat_deg: origin.lat_deg,
+        origin_lon_deg: origin.lon_deg,
+        origin_alt_m: origin.alt_msl_m,
+    };
+    let encoded = encode_record(&mut buf, TRUTH_ORIGIN_INDEX, time_origin_ns, &origin);
+    push(&mut stream, encoded, &buf);
     let mut log = TruthLog {
         stream,
         buf,
@@ -203,36 +222,33 @@ fn truth_tap(
     Box::new(move |t_ns: u64, truth: &Truth| {
         log.last_t_ns = t_ns;
         let TruthLog { stream, buf, .. } = &mut log;
-        let Some(format) = format.as_ref() else {
-            return;
-        };
-        let [n, e, d] = truth.position_ned_m;
+        let [north_m, east_m, down_m] = truth.position_ned_m;
         let [vn, ve, vd] = truth.velocity_ned_mps;
         let [p, q, r] = truth.rates_body_radps;
         let [wn, we, wd] = truth.wind_ned_mps;
         let f = |x: f64| x as f32;
-        let written = DataBlockWriter::new(buf, TRUTH_INDEX, time_origin_ns + t_ns, format)
-            .f64(n)
-            .f64(e)
-            .f64(d)
-            .f32(f(vn))
-            .f32(f(ve))
-            .f32(f(vd))
-            .f32(f(truth.roll_rad))
-            .f32(f(truth.pitch_rad))
-            .f32(f(truth.yaw_rad))
-            .f32(f(p))
-            .f32(f(q))
-            .f32(f(r))
-            .f32(f(truth.airspeed_mps))
-            .f32(f(truth.alpha_rad))
-            .f32(f(truth.beta_rad))
-            .f32(f(wn))
-            .f32(f(we))
-            .f32(f(wd))
-            .u8(u8::from(truth.on_ground))
-            .finish();
-        if let Ok(len) = written {
+        let record = TruthRecord {
+            north_m,
+            east_m,
+            down_m,
+            vn_m_s: f(vn),
+            ve_m_s: f(ve),
+            vd_m_s: f(vd),
+            roll_rad: f(truth.roll_rad),
+            pitch_rad: f(truth.pitch_rad),
+            yaw_rad: f(truth.yaw_rad),
+            p_rad_s: f(p),
+            q_rad_s: f(q),
+            r_rad_s: f(r),
+            airspeed_m_s: f(truth.airspeed_mps),
+            alpha_rad: f(truth.alpha_rad),
+            beta_rad: f(truth.beta_rad),
+            wind_n_m_s: f(wn),
+            wind_e_m_s: f(we),
+            wind_d_m_s: f(wd),
+            on_ground: truth.on_ground,
+        };
+        if let Ok(len) = encode_record(buf, TRUTH_INDEX, time_origin_ns + t_ns, &record) {
             stream.push_record(buf.get(..len).unwrap_or_default());
         }
     })

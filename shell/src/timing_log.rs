@@ -5,9 +5,8 @@ use crate::host::{TimerCheck, TimingSink};
 use crate::logwriter::LogStream;
 use skyframe_core::executive::FrameRecord;
 use skyframe_core::logfmt::frame_log::{FrameLogFormat, encode_frame_record};
-use skyframe_core::logfmt::record::{
-    DataBlockWriter, LogFormat, MAX_RECORD_LEN, encode_begin_data, encode_end_data,
-};
+use skyframe_core::logfmt::record::{MAX_RECORD_LEN, encode_begin_data, encode_end_data};
+use skyframe_core::logfmt::{LogRecord, encode_record};
 use skyframe_core::schedule::FrameTable;
 
 /// Format index of the timing records in the executive's log file.
@@ -16,13 +15,21 @@ pub const TIMING_FORMAT_INDEX: u8 = 1;
 /// Format index of the start-up timer check (one record, before the first frame's).
 pub const TIMER_CHECK_FORMAT_INDEX: u8 = 2;
 
-/// The start-up timer check: how late `samples` wake-ups of period `period_us` were, against
-/// the frame margin; `over_margin` 1 when the worst ate the whole margin.
-pub const TIMER_CHECK_LOG: LogFormat = LogFormat::new(
-    "%u,%u,%.1f,%.1f,%.1f,%.1f,%.1f,%.1f,%hhu",
-    "period_us,samples,wakeup_latency_mean_us,wakeup_latency_p50_us,wakeup_latency_p99_us,\
-     wakeup_latency_p999_us,wakeup_latency_max_us,margin_us,over_margin",
-);
+skyframe_core::log_record! {
+    /// The start-up timer check: how late `samples` wake-ups of period `period_us` were,
+    /// against the frame margin; `over_margin` 1 when the worst ate the whole margin.
+    pub struct TimerCheckLog {
+        period_us: u32 = "%u",
+        samples: u32 = "%u",
+        wakeup_latency_mean_us: f32 = "%.1f",
+        wakeup_latency_p50_us: f32 = "%.1f",
+        wakeup_latency_p99_us: f32 = "%.1f",
+        wakeup_latency_p999_us: f32 = "%.1f",
+        wakeup_latency_max_us: f32 = "%.1f",
+        margin_us: f32 = "%.1f",
+        over_margin: bool = "%hhu",
+    }
+}
 
 pub struct TimingLog {
     stream: LogStream,
@@ -84,28 +91,26 @@ impl TimingLog {
 
     /// Logs the start-up timer check, stamped with the time the first frame is due.
     pub fn timer_check(&mut self, check: &TimerCheck) {
-        let Ok(format) = TIMER_CHECK_LOG.parse() else {
-            return;
-        };
-        let Ok(n) = TIMER_CHECK_LOG.encode_declaration(&mut self.buf, TIMER_CHECK_FORMAT_INDEX)
+        let Ok(n) =
+            TimerCheckLog::FORMAT.encode_declaration(&mut self.buf, TIMER_CHECK_FORMAT_INDEX)
         else {
             return;
         };
         self.push(n);
         let latency = &check.wakeup_latency_us;
+        let record = TimerCheckLog {
+            period_us: u32::try_from(check.period_us).unwrap_or(u32::MAX),
+            samples: u32::try_from(latency.count).unwrap_or(u32::MAX),
+            wakeup_latency_mean_us: latency.mean as f32,
+            wakeup_latency_p50_us: latency.p50 as f32,
+            wakeup_latency_p99_us: latency.p99 as f32,
+            wakeup_latency_p999_us: latency.p999 as f32,
+            wakeup_latency_max_us: latency.max as f32,
+            margin_us: check.margin_us as f32,
+            over_margin: check.over_margin,
+        };
         let t_ns = self.time_origin_ns + self.last_t_ns;
-        let written = DataBlockWriter::new(&mut self.buf, TIMER_CHECK_FORMAT_INDEX, t_ns, &format)
-            .u32(u32::try_from(check.period_us).unwrap_or(u32::MAX))
-            .u32(u32::try_from(latency.count).unwrap_or(u32::MAX))
-            .f32(latency.mean as f32)
-            .f32(latency.p50 as f32)
-            .f32(latency.p99 as f32)
-            .f32(latency.p999 as f32)
-            .f32(latency.max as f32)
-            .f32(check.margin_us as f32)
-            .u8(u8::from(check.over_margin))
-            .finish();
-        if let Ok(n) = written {
+        if let Ok(n) = encode_record(&mut self.buf, TIMER_CHECK_FORMAT_INDEX, t_ns, &record) {
             self.push(n);
         }
     }

@@ -28,7 +28,8 @@ use crate::link::params::{DefineError, ParamTable};
 use core::cell::RefCell;
 
 crate::log_record! {
-    /// Each control step: the mode and why, the estimate it used, the pilot's sticks, the targets and the commands (format 1).
+    /// Each control step: the mode and why, the estimate it used, the pilot's sticks, the
+    /// targets and the commands (format 1).
     pub struct ControlLog {
         mode: u8 = "%hhu",
         reason: u8 = "%hhu",
@@ -58,7 +59,8 @@ crate::log_record! {
     }
 }
 crate::log_record! {
-    /// The parameters in force, whenever they change (format 2); the columns are the `control.*` parameters' names, in `param_specs` order.
+    /// The parameters in force, whenever they change (format 2); the columns are the
+    /// `control.*` parameters' names, in `param_specs` order.
     pub struct ControlGainsLog {
         roll_kp: f32 = "%.4f",
         roll_ki: f32 = "%.4f",

@@ -37,10 +37,7 @@ pub struct DeviceStatusLog {
 
 impl DeviceStatusLog {
     pub const fn new(index: u8) -> Self {
-        Self {
-            index,
-            next_ns: 0,
-        }
+        Self { index, next_ns: 0 }
     }
 
     pub fn declare<S: RecordSink>(

@@ -12,7 +12,8 @@ use crate::executive::{Task, TaskContext, TaskFault};
 use embedded_io::{Read, ReadReady};
 
 crate::log_record! {
-    /// Each fix the receiver completes (format 1); unknown values are NaN or the all-ones integer.
+    /// Each fix the receiver completes (format 1); unknown values are NaN or the all-ones
+    /// integer.
     pub struct GpsFixLog {
         valid: bool = "%hhu",
         quality: u8 = "%hhu",
@@ -77,9 +78,7 @@ fn or_nan64(v: Option<f64>) -> f64 {
 impl<P: Read + ReadReady, S: RecordSink> Task for GpsTask<'_, P, S> {
     fn init(&mut self, cx: &mut TaskContext<'_>) -> Result<(), TaskFault> {
         let bad = |_| TaskFault::new("gps log format");
-        self.log
-            .declare::<GpsFixLog>(cx, FIX_INDEX)
-            .map_err(bad)?;
+        self.log.declare::<GpsFixLog>(cx, FIX_INDEX).map_err(bad)?;
         self.status.declare(&mut self.log, cx).map_err(bad)?;
         self.log.begin(cx);
         Ok(())

@@ -12,10 +12,10 @@ pub mod gps;
 pub mod health;
 pub mod imu;
 pub mod logging;
-pub mod servo;
-pub mod tap;
 #[cfg(test)]
 mod record_tests;
+pub mod servo;
+pub mod tap;
 pub mod task_log;
 pub mod telemetry;
 

@@ -41,7 +41,13 @@ fn the_gains_record_has_a_column_for_each_control_parameter_in_order() {
         .filter_map(|p| p.name().as_str().strip_prefix("control."))
         // The one name that differs: the column spells its unit as conventions.md does, the
         // parameter kept the name researchers' scripts already set.
-        .map(|name| if name == "cruise_mps" { "cruise_m_s" } else { name })
+        .map(|name| {
+            if name == "cruise_mps" {
+                "cruise_m_s"
+            } else {
+                name
+            }
+        })
         .collect();
     let columns: heapless::Vec<&str, 32> = ControlGainsLog::FORMAT.columns.split(',').collect();
     assert_eq!(names, columns);

@@ -232,7 +232,16 @@ where
                     mode,
                 });
                 let ch = report.pilot_us;
-                let [ch1_us, ch2_us, ch3_us, ch4_us, ch5_us, ch6_us, ch7_us, ch8_us] = ch;
+                let [
+                    ch1_us,
+                    ch2_us,
+                    ch3_us,
+                    ch4_us,
+                    ch5_us,
+                    ch6_us,
+                    ch7_us,
+                    ch8_us,
+                ] = ch;
                 let record = ServoPilotLog {
                     counter: frame.counter,
                     ch1_us,

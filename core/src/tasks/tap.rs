@@ -111,7 +111,11 @@ impl Tap {
             return None;
         }
         let (time, values) = f.latest.as_ref()?;
-        let values = values.iter().map(|&v| link_value(v)).take(MAX_TASK_VALUES).collect();
+        let values = values
+            .iter()
+            .map(|&v| link_value(v))
+            .take(MAX_TASK_VALUES)
+            .collect();
         let time = *time;
         f.records_sent = f.records;
         Some(TappedRecord {
@@ -232,7 +236,13 @@ mod tests {
         at(&health, 2_000, |cx| log.log(cx, 1, &sample(2)));
         let latest = tap.take_latest(1, false).expect("one was logged");
         assert_eq!(latest.values[0], Value::U32(1));
-        assert_eq!(latest.time, Time { sec: 0, nsec: 1_000 });
+        assert_eq!(
+            latest.time,
+            Time {
+                sec: 0,
+                nsec: 1_000
+            }
+        );
     }
 
     #[test]
@@ -250,7 +260,13 @@ mod tests {
         );
         at(&health, 12_340_000_000, |cx| log.log(cx, 1, &sample(7)));
         let latest = tap.take_latest(1, true).expect("fresh");
-        assert_eq!(latest.time, Time { sec: 12, nsec: 340_000_000 });
+        assert_eq!(
+            latest.time,
+            Time {
+                sec: 12,
+                nsec: 340_000_000
+            }
+        );
         assert_eq!(
             latest.values.as_slice(),
             [

@@ -12,7 +12,7 @@ use skyframe_core::link::messages::{
 };
 use skyframe_core::link::params::ParamTable;
 use skyframe_core::link::telemetry::{Due, TelemetrySchedule, VehicleEnvelopes};
-use skyframe_core::logfmt::Time;
+use skyframe_core::logfmt::{LogRecord, Time};
 use skyframe_core::tasks::{control, estimator, gps, imu, servo};
 use std::io;
 use std::net::{SocketAddr, UdpSocket};
@@ -25,26 +25,26 @@ use std::time::{Duration, Instant};
 /// task's formats (index, columns) as the vehicle's tasks declare them in the core; the last
 /// three send no data here.
 pub const TASKS: [(&str, &[(u8, &str)]); 8] = [
-    ("imu", &[(imu::FAST_INDEX, imu::IMU_FAST_LOG.columns)]),
+    ("imu", &[(imu::FAST_INDEX, imu::ImuFastLog::FORMAT.columns)]),
     (
         "estimator",
         &[(
             estimator::STATE_INDEX,
-            estimator::ESTIMATOR_STATE_LOG.columns,
+            estimator::EstimatorStateLog::FORMAT.columns,
         )],
     ),
     (
         "control",
-        &[(control::CONTROL_INDEX, control::CONTROL_LOG.columns)],
+        &[(control::CONTROL_INDEX, control::ControlLog::FORMAT.columns)],
     ),
     (
         "servo",
         &[
-            (servo::PILOT_INDEX, servo::SERVO_PILOT_LOG.columns),
-            (servo::COMMAND_INDEX, servo::SERVO_COMMAND_LOG.columns),
+            (servo::PILOT_INDEX, servo::ServoPilotLog::FORMAT.columns),
+            (servo::COMMAND_INDEX, servo::ServoCommandLog::FORMAT.columns),
         ],
     ),
-    ("gps", &[(gps::FIX_INDEX, gps::GPS_FIX_LOG.columns)]),
+    ("gps", &[(gps::FIX_INDEX, gps::GpsFixLog::FORMAT.columns)]),
     ("logging", &[]),
     ("telemetry", &[]),
     ("health", &[]),
