@@ -2,7 +2,7 @@
 //! frame table printed for people.
 
 use skyframe_core::schedule::analysis::{
-    Analysis, ErrorReport, ExecutiveInput, TASK_CATALOGUE, TaskInput, analyse,
+    Analysis, ErrorReport, ExecutiveInput, TaskInput, analyse,
 };
 use skyframe_core::schedule::file::ScheduleFile;
 use skyframe_input_files::{CONFIG_LIMIT, read_text};
@@ -22,12 +22,31 @@ pub fn check_file(path: &Path) -> Result<Checked, String> {
     let text = read_text(path, "schedule", CONFIG_LIMIT)?;
     let file = ScheduleFile::parse(&text).map_err(|e| format!("{}: {e}", path.display()))?;
     let exec = file.executive_input();
-    Ok(
-        file.with_inputs(|tasks| match analyse(tasks, &exec, TASK_CATALOGUE) {
-            Ok(analysis) => Checked {
-                report: render(path, tasks, &exec, &analysis),
-                feasible: true,
-            },
+    let names = crate::tasks::task_names(crate::tasks::REGISTRY);
+    Ok(file.with_inputs(|tasks| {
+        // A name skyframe has no task for first: the clearest message. A registered task
+        // the schedule leaves out after the timing analysis, which a partial schedule can
+        // still be checked for.
+        let scheduled: Vec<&str> = tasks.iter().map(|t| t.name).collect();
+        if let Some(mismatch) = crate::tasks::unknown_task(&scheduled, crate::tasks::REGISTRY) {
+            return Checked {
+                report: format!("{}: {mismatch}\n", path.display()),
+                feasible: false,
+            };
+        }
+        match analyse(tasks, &exec, Some(&names)) {
+            Ok(analysis) => {
+                match crate::tasks::unscheduled_task(&scheduled, crate::tasks::REGISTRY) {
+                    Some(mismatch) => Checked {
+                        report: format!("{}: {mismatch}\n", path.display()),
+                        feasible: false,
+                    },
+                    None => Checked {
+                        report: render(path, tasks, &exec, &analysis),
+                        feasible: true,
+                    },
+                }
+            }
             Err(error) => Checked {
                 report: format!(
                     "{}: infeasible schedule: {}\n",
@@ -36,8 +55,8 @@ pub fn check_file(path: &Path) -> Result<Checked, String> {
                 ),
                 feasible: false,
             },
-        }),
-    )
+        }
+    }))
 }
 
 fn ms(ns: u64) -> String {
@@ -177,6 +196,42 @@ late_start_us = 500
         assert!(!checked.feasible);
         assert!(
             checked.report.contains("minor frame 4 is over-full: budgets 9500 us > frame less margin 9 ms (tasks: imu, gps)"),
+            "{}",
+            checked.report
+        );
+    }
+
+    #[test]
+    fn a_name_with_no_task_is_refused_naming_the_registry() {
+        let shipped =
+            std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("../schedule.toml"))
+                .expect("shipped schedule");
+        let baro = shipped.replace(
+            "tasks = [\n",
+            "tasks = [\n  { name = \"baro\", period_ms = 50, budget_us = 200, on_overrun = \"log\" },\n",
+        );
+        let checked = check_file(&write("baro.toml", &baro)).expect("readable");
+        assert!(!checked.feasible);
+        assert!(
+            checked.report.contains(
+                "baro.toml: task `baro` is in the schedule but skyframe has no such task \
+                 (registered in shell/src/tasks.rs: imu, gps, servo, estimator, control, \
+                 telemetry, logging, health)"
+            ),
+            "{}",
+            checked.report
+        );
+        let without_gps: String = shipped
+            .lines()
+            .filter(|l| !l.contains("name = \"gps\""))
+            .map(|l| format!("{l}\n"))
+            .collect();
+        let checked = check_file(&write("no-gps.toml", &without_gps)).expect("readable");
+        assert!(!checked.feasible);
+        assert!(
+            checked.report.contains(
+                "task `gps` is registered (shell/src/tasks.rs) but the schedule does not run it"
+            ),
             "{}",
             checked.report
         );

@@ -824,6 +824,7 @@ fn fly_with<P: Platform>(
         &SHIPPED,
         FlightPlan {
             log_dir: args.log_dir.as_deref().unwrap_or(&log.dir),
+            registry: crate::tasks::REGISTRY,
             log: LogSettings {
                 free_space,
                 require_space: args.require_log_space,

@@ -3,39 +3,27 @@
 //! control, telemetry until their issues land) hold idle tasks.
 
 use crate::host::{EXIT_STOPPED_STUCK, HostError, RunOptions, STOP_CLOSE_WAIT, run_executive};
-use crate::idle::{IdleTask, idle_tasks};
+use crate::idle::idle_tasks;
 use crate::logwriter::{LogStream, LogWriter, StreamMode, StreamStatus, WriterConfig};
 use crate::platform::Platform;
 use crate::serial::{DevicePort, PortConfig, PortState, PortStatus, check_opens, spawn_port};
 use crate::simflight::{SimPlatform, device_rings};
 use crate::summary::SummaryReport;
+use crate::tasks::{FlyingTask, LinkParts, Needs, Shared, TaskEntry, TaskReports, Wiring};
 use crate::timing_log::TimingLog;
 use crate::vehicle::VehicleConfig;
 use serde::Serialize;
-use skyframe_core::comm::LatestSlot;
 use skyframe_core::comm::LogHealthCell;
 use skyframe_core::control::mission::Mission;
 use skyframe_core::devices::DecoderStats;
-use skyframe_core::devices::gps::SentenceKind;
-use skyframe_core::devices::gps::{GpsConfig, GpsFix};
-use skyframe_core::devices::imu::ImuSample;
-use skyframe_core::estimation::EstimatorConfig;
 use skyframe_core::executive::Task;
 use skyframe_core::link::ingress::IngressCounters;
 use skyframe_core::link::messages::FlightMode;
-use skyframe_core::link::params::ParamTable;
 use skyframe_core::schedule::FrameTable;
-use skyframe_core::tasks::control::{ControlSettings, ControlTask, define_params};
-use skyframe_core::tasks::estimator::EstimatorTask;
-use skyframe_core::tasks::gps::GpsTask;
-use skyframe_core::tasks::health::HealthTask;
-use skyframe_core::tasks::imu::ImuTask;
-use skyframe_core::tasks::logging::LoggingTask;
-use skyframe_core::tasks::servo::{ComputerCommand, PilotInput, ServoTask};
-use skyframe_core::tasks::tap::{Tap, TappedSink};
-use skyframe_core::tasks::telemetry::{LinkShared, TelemetryConfig, TelemetryTask};
+use skyframe_core::tasks::control::define_params;
+use skyframe_core::tasks::tap::Tap;
+use skyframe_core::tasks::telemetry::TelemetryConfig;
 use skyframe_sim::world::SimWorld;
-use std::cell::{Cell, RefCell};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -45,8 +33,6 @@ use std::time::{Duration, SystemTime, UNIX_EPOCH};
 const TIMING_RING_BYTES: usize = 256 * 1024;
 /// Ring of each task's log stream: seconds of its heaviest output (IMU: ~5 kB/s).
 const TASK_RING_BYTES: usize = 128 * 1024;
-/// Health snapshots once a second.
-const HEALTH_SNAPSHOT_NS: u64 = 1_000_000_000;
 const MS: u64 = 1_000_000;
 
 /// Where the flight's devices are.
@@ -70,6 +56,8 @@ pub struct FlightPlan<'a> {
     pub link: Option<LinkPlan>,
     /// Waypoints for AUTO; without them AUTO holds altitude, heading and airspeed.
     pub mission: Option<Mission>,
+    /// The tasks the schedule's names stand for ([`crate::tasks::REGISTRY`]).
+    pub registry: &'a [TaskEntry],
     pub options: RunOptions<'a>,
 }
 
@@ -306,15 +294,10 @@ pub fn fly<P: Platform>(
         statuses: Vec::new(),
     };
     let timing_stream = streams.open("executive", TIMING_RING_BYTES);
-    let health_stream = streams.open("health", TASK_RING_BYTES);
-    let watchdog_stream = streams.open("watchdog", TASK_RING_BYTES);
-    let link_stream = link
-        .is_some()
-        .then(|| streams.open("link", TASK_RING_BYTES));
 
-    // Device I/O threads, each with its task's log stream.
+    // Device I/O: a port thread per serial device, or the simulated airplane's rings.
     let mut serial: Vec<SerialDevice> = Vec::new();
-    let mut device_ports: Vec<(&'static str, DevicePort, LogStream, u64)> = Vec::new();
+    let mut device_ports: Vec<(&'static str, DevicePort, u64)> = Vec::new();
     for (name, config, stale_ns) in port_configs {
         let (handle, join) = spawn_port(
             config.clone(),
@@ -322,16 +305,14 @@ pub fn fly<P: Platform>(
             Arc::clone(&io_stop),
         )
         .map_err(|e| format!("cannot start the {name} port thread: {e}"))?;
-        let log = streams.open(name, TASK_RING_BYTES);
         serial.push(SerialDevice {
             name,
             config,
             status: handle.status,
             join,
         });
-        device_ports.push((name, DevicePort::new(handle.rx, handle.tx), log, stale_ns));
+        device_ports.push((name, DevicePort::new(handle.rx, handle.tx), stale_ns));
     }
-
     let mut sim = None;
     if let Devices::Sim(world) = plan.devices {
         let (ports, link) = device_rings();
@@ -340,17 +321,43 @@ pub fn fly<P: Platform>(
             .into_iter()
             .zip(SIM_STALE_NS)
         {
-            let log = streams.open(name, TASK_RING_BYTES);
-            device_ports.push((name, port, log, stale_ns));
+            device_ports.push((name, port, stale_ns));
         }
         let truth = streams.open("truth", TASK_RING_BYTES);
         sim = Some((world, link, truth));
     }
 
-    // Estimation and control fly whenever there are devices to feed them.
-    let has_devices = !device_ports.is_empty();
-    let estimator_stream = has_devices.then(|| streams.open("estimator", TASK_RING_BYTES));
-    let control_stream = has_devices.then(|| streams.open("control", TASK_RING_BYTES));
+    // Each slot of the table: its registry entry, and whether this flight has what it needs.
+    let scheduled: Vec<&str> = table.tasks.iter().map(|t| t.name).collect();
+    if let Some(mismatch) = crate::tasks::schedule_mismatch(&scheduled, plan.registry) {
+        return Err(mismatch);
+    }
+    let has_sensors = !device_ports.is_empty();
+    let mut slots: Vec<(&TaskEntry, Option<&'static str>)> = Vec::new();
+    for slot in table.tasks {
+        let Some(entry) = plan.registry.iter().find(|e| e.name == slot.name) else {
+            return Err(format!("task `{}` has no registry entry", slot.name));
+        };
+        let missing = match entry.needs {
+            Needs::Nothing => None,
+            Needs::Device => (!device_ports.iter().any(|(name, ..)| *name == entry.name))
+                .then_some("no such device on this flight"),
+            Needs::Sensors => (!has_sensors).then_some("no devices to feed it"),
+            Needs::Link => link.is_none().then_some("no link (--no-link)"),
+        };
+        if let Some(why) = missing {
+            log::info!("task {} does not fly: {why}", entry.name);
+        }
+        slots.push((entry, missing));
+    }
+    let mut logs: Vec<Option<LogStream>> = slots
+        .iter()
+        .map(|(entry, missing)| {
+            missing
+                .is_none()
+                .then(|| streams.open(entry.log, TASK_RING_BYTES))
+        })
+        .collect();
 
     // A stream named for text that this flight does not write is a typo, not a no-op.
     if let Some(unknown) = streams
@@ -382,179 +389,87 @@ pub fn fly<P: Platform>(
     let mut timing = TimingLog::start(timing_stream, table, time_origin_ns, 0)?;
 
     // The data path between tasks.
-    let imu_samples: LatestSlot<ImuSample> = LatestSlot::new();
-    let gps_fixes: LatestSlot<GpsFix> = LatestSlot::new();
-    let servo_commands: LatestSlot<ComputerCommand> = LatestSlot::new();
-    let pilot: LatestSlot<PilotInput> = LatestSlot::new();
-    let watchdog_out = LatestSlot::new();
-
-    let health_period_ms = Cell::new(0u32);
-    let mode_request = LatestSlot::new();
-    let active_mode = LatestSlot::new();
+    let shared = Shared::default();
     // A loaded mission is what the researcher wants flown when the pilot hands over; the
     // ground station can still request Stabilise or Manual at any time.
     if plan.mission.is_some() {
-        mode_request.publish(FlightMode::Auto);
+        shared.mode_request.publish(FlightMode::Auto);
     }
-    let horizon = LatestSlot::new();
-    let estimate = LatestSlot::new();
-    let params = RefCell::new(ParamTable::new());
-    let control_defaults = ControlSettings::default();
-    if let Ok(mut table) = params.try_borrow_mut() {
-        define_params(&mut table, &control_defaults)
+    if let Ok(mut params) = shared.params.try_borrow_mut() {
+        define_params(&mut params, &shared.control)
             .map_err(|e| format!("control parameters: {e:?}"))?;
     }
-    let (imu_tap, gps_tap, servo_tap, health_tap) =
-        (Tap::new(), Tap::new(), Tap::new(), Tap::new());
-    let (estimator_tap, control_tap) = (Tap::new(), Tap::new());
-    let mut estimator_task = estimator_stream.map(|log| {
-        EstimatorTask::new(
-            EstimatorConfig::default(),
-            TappedSink {
-                inner: log,
-                tap: &estimator_tap,
-            },
-            &imu_samples,
-            &gps_fixes,
-            Some(&horizon),
-            &estimate,
-        )
-    });
-    let mut control_task = control_stream.map(|log| {
-        ControlTask::new(
-            control_defaults,
-            TappedSink {
-                inner: log,
-                tap: &control_tap,
-            },
-            &estimate,
-            &pilot,
-            &mode_request,
-            plan.mission.as_ref(),
-            &params,
-            &servo_commands,
-        )
-        .publishing_mode(&active_mode)
-    });
-    let (watchdog_tap, link_tap) = (Tap::new(), Tap::new());
-    let mut watchdog = HealthTask::new(&watchdog_out)
-        .logging_to(TappedSink {
-            inner: watchdog_stream,
-            tap: &watchdog_tap,
-        })
-        .with_period(&health_period_ms);
-    let mut logging = LoggingTask::new(
-        TappedSink {
-            inner: health_stream,
-            tap: &health_tap,
-        },
-        HEALTH_SNAPSHOT_NS,
-    );
-    let mut imu_task = None;
-    let mut gps_task = None;
-    let mut servo_task = None;
-    for (name, port, log, stale_ns) in device_ports {
-        let tap = match name {
-            "imu" => &imu_tap,
-            "gps" => &gps_tap,
-            _ => &servo_tap,
-        };
-        let log = TappedSink { inner: log, tap };
-        match name {
-            "imu" => imu_task = Some(ImuTask::new(port, log, stale_ns, &imu_samples)),
-            "gps" => {
-                let config = GpsConfig {
-                    stale_timeout_ns: stale_ns,
-                    // The simulated receiver ends each epoch with POS: no epoch of delay.
-                    epoch_end: sim.is_some().then_some(SentenceKind::AshtechPos),
-                };
-                gps_task = Some(GpsTask::new(port, log, config, &gps_fixes));
-            }
-            _ => {
-                servo_task = Some(ServoTask::new(port, log, stale_ns, &servo_commands, &pilot));
-            }
-        }
-    }
-
-    let taps: Vec<Option<&Tap>> = table
-        .tasks
+    let taps: Vec<Tap> = slots.iter().map(|_| Tap::new()).collect();
+    let tap_refs: Vec<Option<&Tap>> = slots
         .iter()
-        .map(|slot| match slot.name {
-            "imu" if imu_task.is_some() => Some(&imu_tap),
-            "gps" if gps_task.is_some() => Some(&gps_tap),
-            "servo" if servo_task.is_some() => Some(&servo_tap),
-            "logging" => Some(&health_tap),
-            "health" => Some(&watchdog_tap),
-            "telemetry" if link_stream.is_some() => Some(&link_tap),
-            "estimator" if estimator_task.is_some() => Some(&estimator_tap),
-            "control" if control_task.is_some() => Some(&control_tap),
-            _ => None,
-        })
+        .zip(&taps)
+        .map(|((_, missing), tap)| missing.is_none().then_some(tap))
         .collect();
     let duration_ns = plan
         .options
         .duration
         .map_or(0, |d| u64::try_from(d.as_nanos()).unwrap_or(u64::MAX));
-    let mut telemetry_task = None;
+    let mut link_parts = None;
     let mut link_io = None;
-    if let (Some((key_file, key, run_id, (port, join, io), plan_link)), Some(link_log)) =
-        (link, link_stream)
-    {
+    if let Some((key_file, key, run_id, (port, join, io), plan_link)) = link {
         let local = io
             .local
             .map_or_else(|| plan_link.commands.to_string(), |a| a.to_string());
-        telemetry_task = Some(TelemetryTask::new(
+        link_parts = Some(LinkParts {
             port,
-            TappedSink {
-                inner: link_log,
-                tap: &link_tap,
-            },
-            table,
             key,
-            TelemetryConfig {
+            config: TelemetryConfig {
                 vehicle_id: plan_link.vehicle_id,
                 run_id,
                 sign_telemetry: plan_link.sign_telemetry,
                 duration_ns,
             },
-            LinkShared {
-                taps: &taps,
-                params: &params,
-                mode_request: &mode_request,
-                active_mode: &active_mode,
-                horizon: &horizon,
-                watchdog: &watchdog_out,
-                health_period_ms: &health_period_ms,
-                stop: plan.options.stop,
-                ingress: Some(&ingress),
-                log_health: Some(&log_health),
-            },
-        ));
+            ingress: &ingress,
+            log_health: &log_health,
+        });
         link_io = Some((key_file, run_id, join, io, local));
     }
 
+    // The tasks, each built by its registry entry.
+    let mut flying: Vec<Option<FlyingTask<'_>>> = Vec::new();
+    for (i, ((entry, missing), tap)) in slots.iter().zip(&taps).enumerate() {
+        if missing.is_some() {
+            flying.push(None);
+            continue;
+        }
+        let device = (entry.needs == Needs::Device)
+            .then(|| {
+                let at = device_ports.iter().position(|(n, ..)| *n == entry.name)?;
+                let (_, port, stale_ns) = device_ports.swap_remove(at);
+                Some((port, stale_ns))
+            })
+            .flatten();
+        let mut wiring = Wiring {
+            shared: &shared,
+            table,
+            tap,
+            taps: &tap_refs,
+            log: logs.get_mut(i).and_then(Option::take),
+            device,
+            simulated: sim.is_some(),
+            mission: plan.mission.as_ref(),
+            link: (entry.needs == Needs::Link)
+                .then(|| link_parts.take())
+                .flatten(),
+            stop: plan.options.stop,
+        };
+        let task = (entry.build)(&mut wiring).map_err(|e| format!("task {}: {e}", entry.name))?;
+        flying.push(Some(FlyingTask(task)));
+    }
     let mut idle = idle_tasks(table.tasks.len());
-    let mut real: Vec<(&'static str, &mut dyn Task)> =
-        vec![("health", &mut watchdog), ("logging", &mut logging)];
-    if let Some(t) = telemetry_task.as_mut() {
-        real.push(("telemetry", t));
-    }
-    if let Some(t) = estimator_task.as_mut() {
-        real.push(("estimator", t));
-    }
-    if let Some(t) = control_task.as_mut() {
-        real.push(("control", t));
-    }
-    if let Some(t) = imu_task.as_mut() {
-        real.push(("imu", t));
-    }
-    if let Some(t) = gps_task.as_mut() {
-        real.push(("gps", t));
-    }
-    if let Some(t) = servo_task.as_mut() {
-        real.push(("servo", t));
-    }
-    let mut tasks = assemble(table, &mut idle, real);
+    let mut tasks: Vec<&mut dyn Task> = flying
+        .iter_mut()
+        .zip(idle.iter_mut())
+        .map(|(task, idle)| match task {
+            Some(task) => task as &mut dyn Task,
+            None => idle as &mut dyn Task,
+        })
+        .collect();
     // A stop that a stuck task keeps waiting: close the logs whole and end the process
     // around the task (the executive never cancels one), with an exit code that says so.
     let emergency = writer.emergency_close();
@@ -591,31 +506,32 @@ pub fn fly<P: Platform>(
     // Shut down in data order: device threads (their last output went out with the
     // tasks' shutdown), then the log.
     io_stop.store(true, Ordering::Relaxed);
-    let mut devices = Vec::new();
+    let mut reports = TaskReports::default();
+    for task in flying.iter().flatten() {
+        task.0.report(&mut reports);
+    }
     let stats = |name: &str| -> DecoderStats {
-        match name {
-            "imu" => imu_task.as_ref().map(|t| *t.stats()),
-            "gps" => gps_task.as_ref().map(|t| *t.stats()),
-            _ => servo_task.as_ref().map(|t| *t.stats()),
-        }
-        .unwrap_or_default()
+        reports
+            .devices
+            .iter()
+            .find(|(n, _)| *n == name)
+            .map(|(_, s)| *s)
+            .unwrap_or_default()
     };
+    let mut devices = Vec::new();
     for d in serial {
         let _ = d.join.join();
         let port = (d.config.path.clone(), d.status);
         devices.push(device_report(d.name, Some(&port), &stats(d.name)));
     }
-    if devices.is_empty() && imu_task.is_some() {
-        for name in ["imu", "gps", "servo"] {
+    if devices.is_empty() {
+        for (name, _) in &reports.devices {
             devices.push(device_report(name, None, &stats(name)));
         }
     }
     let link = link_io.map(|(key_file, run_id, join, io, commands_address)| {
         let _ = join.join();
-        let counters = telemetry_task
-            .as_ref()
-            .map(|t| t.counters())
-            .unwrap_or_default();
+        let counters = reports.link.unwrap_or_default();
         LinkReport {
             key_file,
             commands_address,
@@ -633,7 +549,9 @@ pub fn fly<P: Platform>(
     let summary = result.map_err(|e: HostError| e.to_string())?;
 
     let mut report = SummaryReport::from(&summary);
-    report.set_watchdog(watchdog.report());
+    if let Some(watchdog) = &reports.watchdog {
+        report.set_watchdog(watchdog);
+    }
     let wall_s = wall.elapsed().as_secs_f64();
     Ok(FlightReport {
         speed_up: report.elapsed_s / wall_s.max(1e-9),
@@ -728,23 +646,6 @@ fn device_report(
         sequence_gaps: stats.sequence_gaps,
         stale_events: stats.stale_events,
     }
-}
-
-/// One task per slot of `table`: the named real tasks where given, idle ones elsewhere.
-fn assemble<'a>(
-    table: &FrameTable,
-    idle: &'a mut [IdleTask],
-    mut real: Vec<(&'static str, &'a mut dyn Task)>,
-) -> Vec<&'a mut dyn Task> {
-    idle.iter_mut()
-        .zip(table.tasks)
-        .map(
-            |(idle, slot)| match real.iter().position(|(name, _)| *name == slot.name) {
-                Some(found) => real.swap_remove(found).1,
-                None => idle as &mut dyn Task,
-            },
-        )
-        .collect()
 }
 
 /// The flight summary for people: the run, its devices, then where its files are.

@@ -27,6 +27,7 @@ pub mod simflight;
 pub mod soak;
 pub mod stats;
 pub mod summary;
+pub mod tasks;
 pub mod textlog;
 pub mod timing_log;
 pub mod vehicle;

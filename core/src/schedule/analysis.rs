@@ -6,9 +6,11 @@
 //! has no dependencies, so the build script can include this file with `#[path]`.
 //!
 //! A schedule is feasible when, in this order:
-//! 1. it is well formed: 1..=32 tasks with unique names from the task catalogue, non-zero
-//!    periods and budgets, periods and offsets that are whole multiples of the minor frame,
-//!    offsets inside their period, dependencies that name known tasks;
+//! 1. it is well formed: 1..=32 tasks with unique names (each one the task registry has, when
+//!    the caller passes its names: the shell's registry is checked against the shipped
+//!    schedule when the shell builds), non-zero periods and budgets, periods and offsets that
+//!    are whole multiples of the minor frame, offsets inside their period, dependencies that
+//!    name known tasks;
 //! 2. the dependencies (`after`) have no cycle, so every frame has one producer → consumer
 //!    order;
 //! 3. in every minor frame the budgets of the tasks released there fit in the frame less the
@@ -23,19 +25,6 @@ use core::fmt;
 pub const MAX_TASKS: usize = 32;
 /// Most minor frames in one major frame (e.g. a 1 ms minor frame with a 1 s task).
 pub const MAX_MINOR_FRAMES: usize = 1000;
-
-/// The task kinds the core implements. A schedule naming anything else is refused: the
-/// executive would have nothing to run in that slot.
-pub const TASK_CATALOGUE: &[&str] = &[
-    "imu",
-    "gps",
-    "servo",
-    "estimator",
-    "control",
-    "telemetry",
-    "logging",
-    "health",
-];
 
 /// What the executive does when a task overruns (its budget, or its frame).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -225,7 +214,7 @@ pub fn released_at(start_ns: u64, period_ns: u64, offset_ns: u64) -> bool {
 pub fn analyse(
     tasks: &[TaskInput<'_>],
     exec: &ExecutiveInput,
-    catalogue: &[&str],
+    catalogue: Option<&[&str]>,
 ) -> Result<Analysis, ScheduleError> {
     check_well_formed(tasks, catalogue)?;
 
@@ -319,7 +308,10 @@ fn index_of(tasks: &[TaskInput<'_>], name: &str) -> Option<usize> {
     tasks.iter().position(|t| t.name == name)
 }
 
-fn check_well_formed(tasks: &[TaskInput<'_>], catalogue: &[&str]) -> Result<(), ScheduleError> {
+fn check_well_formed(
+    tasks: &[TaskInput<'_>],
+    catalogue: Option<&[&str]>,
+) -> Result<(), ScheduleError> {
     if tasks.is_empty() {
         return Err(ScheduleError::NoTasks);
     }
@@ -330,7 +322,7 @@ fn check_well_formed(tasks: &[TaskInput<'_>], catalogue: &[&str]) -> Result<(), 
         if index_of(tasks, t.name) != Some(i) {
             return Err(ScheduleError::DuplicateTask { task: i });
         }
-        if !catalogue.contains(&t.name) {
+        if catalogue.is_some_and(|names| !names.contains(&t.name)) {
             return Err(ScheduleError::UnknownTask { task: i });
         }
         if let Some(d) = t
@@ -485,9 +477,9 @@ impl fmt::Display for ErrorReport<'_> {
             }
             ScheduleError::UnknownTask { task } => write!(
                 f,
-                "unknown task `{}`: the core implements {}",
+                "unknown task `{}`: skyframe has no task of that name (the registry, \
+                 shell/src/tasks.rs, lists them)",
                 name(task),
-                Catalogue
             ),
             ScheduleError::UnknownDependency {
                 task,
@@ -586,19 +578,5 @@ impl fmt::Display for ErrorReport<'_> {
                 Ms(self.tasks.get(task).map_or(0, |t| t.period_ns))
             ),
         }
-    }
-}
-
-struct Catalogue;
-
-impl fmt::Display for Catalogue {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        for (i, name) in TASK_CATALOGUE.iter().enumerate() {
-            if i > 0 {
-                f.write_str(", ")?;
-            }
-            f.write_str(name)?;
-        }
-        Ok(())
     }
 }
