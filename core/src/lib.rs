@@ -24,14 +24,16 @@
 extern crate std;
 
 #[macro_use]
-pub mod facade;
+pub mod angles;
 pub mod comm;
 pub mod control;
 pub mod devices;
 pub mod estimation;
 pub mod executive;
+pub mod facade;
 pub mod horizon;
 pub mod link;
 pub mod logfmt;
 pub mod schedule;
+pub mod stats;
 pub mod tasks;

@@ -7,7 +7,8 @@
 //! Long (a few simulated minutes at 1 ms RK4): ignored in debug builds. Run with
 //! `cargo test -p skyframe-sim --release --test closed_loop -- --nocapture`.
 
-use skyframe_core::control::autopilot::{Autopilot, AutopilotGains, wrap_pi};
+use skyframe_core::angles::wrap_pi_f32 as wrap_pi;
+use skyframe_core::control::autopilot::{Autopilot, AutopilotGains};
 use skyframe_core::control::mission::{Mission, MissionProgress, Waypoint};
 use skyframe_core::devices::gps::GpsFix;
 use skyframe_core::estimation::ekf::NominalState;

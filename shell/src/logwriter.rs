@@ -24,13 +24,10 @@ use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-const BEGIN_DATA: u8 = 0xBD;
-const END_DATA: u8 = 0xED;
-const FORMAT_COMMENT: u8 = 0xFC;
-const FORMAT_DEFINITION: u8 = 0xFD;
-const DATA_BLOCK: u8 = 0xDB;
-const BYTE_ARRAY: u8 = 0xBA;
-const BYTE_ARRAY_OLD: u8 = 0xDA;
+use skyframe_core::logfmt::record::kind::{
+    BEGIN_DATA, BYTE_ARRAY, BYTE_ARRAY_LEGACY, DATA_BLOCK, END_DATA, FORMAT_COMMENT,
+    FORMAT_DEFINITION,
+};
 
 #[derive(Clone, Debug)]
 pub struct WriterConfig {
@@ -397,7 +394,7 @@ fn head(bytes: &[u8]) -> Head {
     let len = match kind {
         BEGIN_DATA | END_DATA => 12,
         FORMAT_COMMENT | FORMAT_DEFINITION => 4 + n,
-        DATA_BLOCK | BYTE_ARRAY | BYTE_ARRAY_OLD => 12 + n,
+        DATA_BLOCK | BYTE_ARRAY | BYTE_ARRAY_LEGACY => 12 + n,
         _ => return Head::Garbage,
     };
     if bytes.len() >= len {

@@ -2,6 +2,7 @@
 //! the simulator's truth, replay's agreement with an onboard estimate).
 
 use serde::Serialize;
+use skyframe_core::stats::{nearest_rank_index, percentile};
 
 /// Percentiles of a sample, in the sample's unit.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
@@ -21,18 +22,14 @@ impl Distribution {
             return Self::default();
         }
         samples.sort_unstable();
-        let rank = |p: f64| {
-            let n = samples.len();
-            let i = ((p * n as f64).ceil() as usize).clamp(1, n) - 1;
-            samples.get(i).copied().unwrap_or(0) as f64
-        };
+        let rank = |num: u64, den: u64| percentile(samples, num, den).unwrap_or(0) as f64;
         let sum: u128 = samples.iter().map(|&s| u128::from(s)).sum();
         Self {
             count: samples.len(),
             mean: (sum as f64 / samples.len() as f64 * 1000.0).round() / 1000.0,
-            p50: rank(0.50),
-            p99: rank(0.99),
-            p999: rank(0.999),
+            p50: rank(50, 100),
+            p99: rank(99, 100),
+            p999: rank(999, 1000),
             max: samples.last().copied().unwrap_or(0) as f64,
         }
     }
@@ -44,8 +41,11 @@ impl Distribution {
         if total == 0 {
             return Self::default();
         }
-        let rank = |p: f64| {
-            let wanted = ((p * total as f64).ceil() as u64).clamp(1, total);
+        let rank = |num: u64, den: u64| {
+            let index = usize::try_from(total)
+                .ok()
+                .and_then(|n| nearest_rank_index(n, num, den));
+            let wanted = index.map_or(total, |i| i as u64 + 1);
             let mut seen = 0;
             for &(value, count) in bins {
                 seen += count;
@@ -60,9 +60,9 @@ impl Distribution {
         Self {
             count: total as usize,
             mean: (sum / total as f64 * 1000.0).round() / 1000.0,
-            p50: rank(0.50),
-            p99: rank(0.99),
-            p999: rank(0.999),
+            p50: rank(50, 100),
+            p99: rank(99, 100),
+            p999: rank(999, 1000),
             max,
         }
     }

@@ -10,11 +10,9 @@ use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
-const FORMAT_COMMENT: u8 = 0xFC;
-const FORMAT_DEFINITION: u8 = 0xFD;
-const DATA_BLOCK: u8 = 0xDB;
-const BYTE_ARRAY: u8 = 0xBA;
-const BYTE_ARRAY_OLD: u8 = 0xDA;
+use skyframe_core::logfmt::record::kind::{
+    BYTE_ARRAY, BYTE_ARRAY_LEGACY, DATA_BLOCK, FORMAT_COMMENT, FORMAT_DEFINITION,
+};
 
 /// One line being rendered, as bytes (`%c` prints raw bytes, as C does).
 #[derive(Default)]
@@ -115,7 +113,7 @@ impl TextStream {
                 self.entry(index).columns = Some(text.into_owned());
                 Ok(Written::Yes)
             }
-            DATA_BLOCK | BYTE_ARRAY | BYTE_ARRAY_OLD => {
+            DATA_BLOCK | BYTE_ARRAY | BYTE_ARRAY_LEGACY => {
                 let Some(time) = record.get(4..12).and_then(|t| <[u8; 8]>::try_from(t).ok()) else {
                     return Ok(Written::Unrenderable);
                 };

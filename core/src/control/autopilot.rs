@@ -14,6 +14,7 @@
 
 use super::pid::{Pid, PidGains, PidTerms};
 use super::wind::WindEstimator;
+use crate::angles::wrap_pi_f32;
 use crate::estimation::Estimate;
 use crate::tasks::servo::Controls;
 
@@ -114,17 +115,6 @@ impl Default for Targets {
             zone: AltitudeZone::Hold,
         }
     }
-}
-
-pub fn wrap_pi(a: f32) -> f32 {
-    let two_pi = 2.0 * core::f32::consts::PI;
-    let mut a = libm::fmodf(a, two_pi);
-    if a > core::f32::consts::PI {
-        a -= two_pi;
-    } else if a <= -core::f32::consts::PI {
-        a += two_pi;
-    }
-    a
 }
 
 #[derive(Clone, Debug)]
@@ -247,9 +237,9 @@ impl Autopilot {
         let g = self.gains;
         let course = est.course_rad();
         let course_rate = G * libm::tanf(est.roll_rad) / est.ground_speed_mps().max(5.0);
-        let roll_c = self
-            .course
-            .update_with_rate(wrap_pi(course_c - course), course_rate, dt_s);
+        let roll_c =
+            self.course
+                .update_with_rate(wrap_pi_f32(course_c - course), course_rate, dt_s);
         let altitude = est.altitude_m();
         let climb_rate = -est.velocity_ned_mps[2];
         let speed = self.wind.airspeed_mps(est);

@@ -41,6 +41,7 @@
 //! or covariance, or a covariance beyond [`EkfConfig`]'s divergence limits, resets the filter
 //! to its last healthy snapshot with the initial covariance (counted, with the reason).
 
+use crate::angles::wrap_pi;
 use nalgebra::{Cholesky, Matrix3, SMatrix, SVector, UnitQuaternion, Vector3};
 
 pub const N: usize = 15;
@@ -902,16 +903,4 @@ impl Ekf {
         self.x.velocity_ned_mps.x = f64::NAN;
         self.check_health();
     }
-}
-
-/// `a` wrapped to (−π, π].
-pub fn wrap_pi(a: f64) -> f64 {
-    let two_pi = 2.0 * core::f64::consts::PI;
-    let mut a = libm::fmod(a, two_pi);
-    if a > core::f64::consts::PI {
-        a -= two_pi;
-    } else if a <= -core::f64::consts::PI {
-        a += two_pi;
-    }
-    a
 }

@@ -4,9 +4,10 @@
 
 use super::alignment::AlignmentConfig;
 use super::ekf::{
-    BG, Ekf, EkfConfig, GRAVITY_MPS2, GpsMeasurement, NominalState, TH, UpdateOutcome, wrap_pi,
+    BG, Ekf, EkfConfig, GRAVITY_MPS2, GpsMeasurement, NominalState, TH, UpdateOutcome,
 };
 use super::estimator::{Estimator, EstimatorConfig, HeadingSource, HealthReason, Phase};
+use crate::angles::wrap_pi;
 use crate::devices::gps::GpsFix;
 use crate::link::messages::HorizonAttitude;
 use nalgebra::{Cholesky, SymmetricEigen, UnitQuaternion, Vector3};

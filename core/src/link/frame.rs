@@ -106,36 +106,14 @@ pub struct Frame<'a> {
     pub tag: Option<&'a [u8]>,
 }
 
-/// CRC-32/ISO-HDLC (the Ethernet and zlib CRC): reflected polynomial 0xEDB88320, initial
-/// value and final XOR 0xFFFFFFFF. Check value: `crc32(b"123456789") == 0xCBF43926`.
+/// CRC-32/ISO-HDLC (the Ethernet and zlib CRC, `crc`'s catalogue entry): reflected
+/// polynomial 0xEDB88320, initial value and final XOR 0xFFFFFFFF. Check value:
+/// `crc32(b"123456789") == 0xCBF43926`.
 pub fn crc32(bytes: &[u8]) -> u32 {
-    !bytes.iter().fold(!0u32, |crc, &byte| {
-        let index = usize::from((crc as u8) ^ byte);
-        CRC_TABLE.get(index).copied().unwrap_or(0) ^ (crc >> 8)
-    })
+    CRC32.checksum(bytes)
 }
 
-const CRC_TABLE: [u32; 256] = crc_table();
-
-const fn crc_table() -> [u32; 256] {
-    let mut table = [0u32; 256];
-    let mut n = 0;
-    while n < 256 {
-        let mut c = n as u32;
-        let mut k = 0;
-        while k < 8 {
-            c = if c & 1 != 0 {
-                0xEDB8_8320 ^ (c >> 1)
-            } else {
-                c >> 1
-            };
-            k += 1;
-        }
-        table[n] = c;
-        n += 1;
-    }
-    table
-}
+const CRC32: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
 
 /// Writes a whole datagram into `out` and returns its length; signs it when given a key.
 pub fn encode_datagram(

@@ -16,8 +16,9 @@
 
 use super::servo::{ComputerCommand, Controls, PilotInput};
 use super::task_log::TaskLog;
+use crate::angles::wrap_pi_f32;
 use crate::comm::{LatestSlot, RecordSink, SlotReader};
-use crate::control::autopilot::{Autopilot, AutopilotGains, Targets, wrap_pi};
+use crate::control::autopilot::{Autopilot, AutopilotGains, Targets};
 use crate::control::mission::{Mission, MissionProgress};
 use crate::control::mode::{ModeDecision, ModeInputs, decide};
 use crate::control::pid::PidGains;
@@ -456,7 +457,7 @@ impl<'a, S: RecordSink> ControlTask<'a, S> {
                 };
                 let (c, t) = self
                     .autopilot
-                    .auto(&e, wrap_pi(course_c), alt_c, speed_c, dt_s);
+                    .auto(&e, wrap_pi_f32(course_c), alt_c, speed_c, dt_s);
                 targets = t;
                 ComputerCommand {
                     controls: c,

@@ -29,7 +29,8 @@ use skyframe_sim::plant::GeodeticPosition;
 
 pub use reference::ReferenceFilters;
 pub use replay::StepTime;
-use truth::{TruthSeries, wrap_pi};
+use skyframe_core::angles::wrap_pi;
+use truth::TruthSeries;
 
 /// What scoring needs besides the flight directory.
 pub struct ScoreSetup<'a> {

@@ -11,8 +11,9 @@ use std::process::Command;
 use serde::Serialize;
 use skyframe_logtable::Table;
 
-use super::truth::{TruthSeries, wrap_pi};
+use super::truth::TruthSeries;
 use super::{ErrorStats, RollPitch, Window, column, seconds};
+use skyframe_core::angles::wrap_pi;
 
 const SCRIPT: &str = include_str!("ahrs_reference.py");
 /// The IMU's sample rate (the filters assume a fixed one).

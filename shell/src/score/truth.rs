@@ -1,5 +1,6 @@
 //! The simulator's ground truth (`truth.bin`) as a time series that can be read at any time.
 
+use skyframe_core::angles::wrap_pi;
 use skyframe_logtable::Table;
 
 /// Truth at one instant: NED position from the simulator's origin, NED velocity, 3-2-1 Euler
@@ -23,11 +24,6 @@ pub struct TruthSeries {
 /// Two truth samples further apart than this are a hole (a dropped record), not something to
 /// interpolate across.
 const MAX_GAP_NS: i64 = 100_000_000;
-
-pub fn wrap_pi(a: f64) -> f64 {
-    let w = (a + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
-    if w.is_finite() { w } else { a }
-}
 
 impl TruthSeries {
     /// From `truth.bin` format 1; `None` names the missing column.

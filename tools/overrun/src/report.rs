@@ -17,15 +17,7 @@ start_latency_ns + the exec_ns of every task that ran up to and including servo 
 frame-table order + overhead_ns x (those tasks / all tasks that ran in the frame), rounded \
 down: from the frame's release (when the IMU sample is due) to the end of servo's step";
 
-/// Nearest-rank percentile of sorted values: rank ⌈num·n/den⌉.
-pub fn percentile(sorted: &[u64], num: u64, den: u64) -> Option<u64> {
-    let n = sorted.len() as u64;
-    if n == 0 || den == 0 {
-        return None;
-    }
-    let rank = (num * n).div_ceil(den).clamp(1, n);
-    sorted.get(usize::try_from(rank - 1).ok()?).copied()
-}
+pub use skyframe_core::stats::percentile;
 
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct Stats {
@@ -592,7 +584,7 @@ mod tests {
         assert_eq!(percentile(&v, 99, 100), Some(990));
         assert_eq!(percentile(&v, 999, 1000), Some(999));
         assert_eq!(percentile(&[5], 999, 1000), Some(5));
-        assert_eq!(percentile(&[], 50, 100), None);
+        assert_eq!(percentile::<u64>(&[], 50, 100), None);
         let v: Vec<u64> = (1..=10).collect();
         assert_eq!(percentile(&v, 50, 100), Some(5));
         assert_eq!(percentile(&v, 99, 100), Some(10));
