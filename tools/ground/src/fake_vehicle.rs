@@ -4,6 +4,8 @@
 //! `CommandGate` and `ParamTable` exactly as the vehicle must. One socket both sends
 //! telemetry and receives commands, as the real vehicle's does.
 
+use nalgebra::Vector3;
+use skyframe_core::estimation::geo::{GeoPoint, LocalFrame};
 use skyframe_core::link::auth::{CommandGate, GateConfig, LinkKey};
 use skyframe_core::link::frame::{MAX_DATAGRAM_LEN, encode_datagram};
 use skyframe_core::link::messages::{
@@ -414,9 +416,20 @@ fn sample_value(column: &str, t_ns: u64) -> Value {
         "fz_m_s2" => f(-9.80665),
         "valid" | "quality" | "healthy" | "ready" => Value::U32(1),
         "satellites" => Value::U32(9),
-        "lat_deg" => Value::F64(47.3977 + radius_m * s / 111_320.0),
-        "lon_deg" => {
-            Value::F64(8.5456 + radius_m * c / (111_320.0 * 47.3977f64.to_radians().cos()))
+        "lat_deg" | "lon_deg" => {
+            let home = GeoPoint {
+                latitude_deg: 47.3977,
+                longitude_deg: 8.5456,
+                altitude_m: 0.0,
+            };
+            let on_circle = LocalFrame::new(home)
+                .map(|frame| frame.to_geodetic(&Vector3::new(radius_m * s, radius_m * c, 0.0)))
+                .unwrap_or(home);
+            Value::F64(if column == "lat_deg" {
+                on_circle.latitude_deg
+            } else {
+                on_circle.longitude_deg
+            })
         }
         "alt_m" => f(488.0 + 2.0 * s),
         "vn_m_s" => f(12.0 * c),

@@ -4,6 +4,7 @@
 //! The x axis is the log TIME in seconds from the first record of the streams loaded (for a
 //! report: of the whole flight, so every figure shares one time axis).
 
+use skyframe_core::estimation::geo::{GeoPoint, LocalFrame};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
@@ -361,22 +362,22 @@ pub struct ReportSummary {
 /// Why a figure cannot be drawn.
 type Skip = String;
 
-/// The WGS-84 ellipsoid.
-const WGS84_A: f64 = 6_378_137.0;
-const WGS84_E2: f64 = 6.694_379_990_14e-3;
-
-/// North/east metres of `(lat, lon)` from `(lat0, lon0)` (degrees), on the plane tangent at
-/// the origin: exact enough for a flight's few kilometres.
+/// North/east metres of `(lat, lon)` from `(lat0, lon0)` (degrees), on the WGS-84 plane
+/// tangent at the origin: the estimator's own local frame (`estimation::geo`). NaN where the
+/// origin is not a position.
 pub fn local_north_east(lat0: f64, lon0: f64, lat: f64, lon: f64) -> (f64, f64) {
-    let phi = lat0.to_radians();
-    let s2 = phi.sin() * phi.sin();
-    let w = (1.0 - WGS84_E2 * s2).sqrt();
-    let meridian = WGS84_A * (1.0 - WGS84_E2) / (w * w * w);
-    let normal = WGS84_A / w;
-    (
-        (lat - lat0).to_radians() * meridian,
-        (lon - lon0).to_radians() * normal * phi.cos(),
-    )
+    let at = |latitude_deg, longitude_deg| GeoPoint {
+        latitude_deg,
+        longitude_deg,
+        altitude_m: 0.0,
+    };
+    match LocalFrame::new(at(lat0, lon0)) {
+        Some(frame) => {
+            let ned = frame.to_ned(&at(lat, lon));
+            (ned.x, ned.y)
+        }
+        None => (f64::NAN, f64::NAN),
+    }
 }
 
 struct Report<'a> {
