@@ -5,6 +5,7 @@ use skyframe_core::schedule::analysis::{
     Analysis, ErrorReport, ExecutiveInput, TaskInput, analyse,
 };
 use skyframe_core::schedule::file::ScheduleFile;
+use skyframe_core::schedule::{FrameTable, TaskSlot};
 use skyframe_input_files::{CONFIG_LIMIT, read_text};
 use std::fmt::Write as _;
 use std::path::Path;
@@ -19,34 +20,40 @@ pub struct Checked {
 /// Reads and checks a schedule file. `Err` is a one-line reason the file could not be read
 /// or parsed (the caller exits 2); an infeasible schedule is `Ok` with `feasible: false`.
 pub fn check_file(path: &Path) -> Result<Checked, String> {
+    check_file_with(path, crate::tasks::REGISTRY)
+}
+
+/// [`check_file`] against another registry (one with a task added).
+pub fn check_file_with(
+    path: &Path,
+    registry: &[crate::tasks::TaskEntry],
+) -> Result<Checked, String> {
     let text = read_text(path, "schedule", CONFIG_LIMIT)?;
     let file = ScheduleFile::parse(&text).map_err(|e| format!("{}: {e}", path.display()))?;
     let exec = file.executive_input();
-    let names = crate::tasks::task_names(crate::tasks::REGISTRY);
+    let names = crate::tasks::task_names(registry);
     Ok(file.with_inputs(|tasks| {
         // A name skyframe has no task for first: the clearest message. A registered task
         // the schedule leaves out after the timing analysis, which a partial schedule can
         // still be checked for.
         let scheduled: Vec<&str> = tasks.iter().map(|t| t.name).collect();
-        if let Some(mismatch) = crate::tasks::unknown_task(&scheduled, crate::tasks::REGISTRY) {
+        if let Some(mismatch) = crate::tasks::unknown_task(&scheduled, registry) {
             return Checked {
                 report: format!("{}: {mismatch}\n", path.display()),
                 feasible: false,
             };
         }
         match analyse(tasks, &exec, Some(&names)) {
-            Ok(analysis) => {
-                match crate::tasks::unscheduled_task(&scheduled, crate::tasks::REGISTRY) {
-                    Some(mismatch) => Checked {
-                        report: format!("{}: {mismatch}\n", path.display()),
-                        feasible: false,
-                    },
-                    None => Checked {
-                        report: render(path, tasks, &exec, &analysis),
-                        feasible: true,
-                    },
-                }
-            }
+            Ok(analysis) => match crate::tasks::unscheduled_task(&scheduled, registry) {
+                Some(mismatch) => Checked {
+                    report: format!("{}: {mismatch}\n", path.display()),
+                    feasible: false,
+                },
+                None => Checked {
+                    report: render(path, tasks, &exec, &analysis),
+                    feasible: true,
+                },
+            },
             Err(error) => Checked {
                 report: format!(
                     "{}: infeasible schedule: {}\n",
@@ -57,6 +64,58 @@ pub fn check_file(path: &Path) -> Result<Checked, String> {
             },
         }
     }))
+}
+
+/// The frame table of a schedule file, for flying a schedule other than the shipped one with
+/// a registry of its own (the tests that add a task show the recipe this way): the same
+/// analysis as the build script, the table leaked for the process's life as the shipped one
+/// is `'static`. `Err` is one line: unreadable, malformed, infeasible, or names that
+/// `registry` does not match.
+pub fn load_frame_table(
+    path: &Path,
+    registry: &[crate::tasks::TaskEntry],
+) -> Result<&'static FrameTable, String> {
+    let text = read_text(path, "schedule", CONFIG_LIMIT)?;
+    let file = ScheduleFile::parse(&text).map_err(|e| format!("{}: {e}", path.display()))?;
+    let exec = file.executive_input();
+    file.with_inputs(|tasks| {
+        let scheduled: Vec<&str> = tasks.iter().map(|t| t.name).collect();
+        if let Some(mismatch) = crate::tasks::schedule_mismatch(&scheduled, registry) {
+            return Err(format!("{}: {mismatch}", path.display()));
+        }
+        let names = crate::tasks::task_names(registry);
+        let a = analyse(tasks, &exec, Some(&names)).map_err(|error| {
+            format!(
+                "{}: infeasible schedule: {}",
+                path.display(),
+                ErrorReport { error, tasks }
+            )
+        })?;
+        let slots: Vec<TaskSlot> = a
+            .order
+            .iter()
+            .take(a.task_count)
+            .filter_map(|&i| tasks.get(usize::from(i)))
+            .map(|t| TaskSlot {
+                name: Box::leak(t.name.to_string().into_boxed_str()),
+                period_ns: t.period_ns,
+                offset_ns: t.offset_ns,
+                budget_ns: t.budget_ns,
+                on_overrun: t.on_overrun,
+            })
+            .collect();
+        let frames: Vec<u32> = (0..a.minor_frames)
+            .map(|frame| a.frame_mask_in_order(frame))
+            .collect();
+        Ok(&*Box::leak(Box::new(FrameTable {
+            minor_frame_ns: a.minor_frame_ns,
+            margin_ns: exec.margin_ns,
+            late_start_ns: exec.late_start_ns,
+            tasks: Box::leak(slots.into_boxed_slice()),
+            frames: Box::leak(frames.into_boxed_slice()),
+            utilisation_ppm: a.utilisation_ppm,
+        })))
+    })
 }
 
 fn ms(ns: u64) -> String {
@@ -199,6 +258,24 @@ late_start_us = 500
             "{}",
             checked.report
         );
+    }
+
+    #[test]
+    fn the_shipped_file_loads_as_the_table_the_build_made() {
+        use skyframe_core::schedule::SHIPPED;
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../schedule.toml");
+        let table = load_frame_table(&path, crate::tasks::REGISTRY).expect("loads");
+        assert_eq!(table.tasks, SHIPPED.tasks);
+        assert_eq!(table.frames, SHIPPED.frames);
+        assert_eq!(
+            (table.minor_frame_ns, table.margin_ns, table.late_start_ns),
+            (
+                SHIPPED.minor_frame_ns,
+                SHIPPED.margin_ns,
+                SHIPPED.late_start_ns
+            )
+        );
+        assert_eq!(table.utilisation_ppm, SHIPPED.utilisation_ppm);
     }
 
     #[test]

@@ -38,6 +38,7 @@ use std::sync::atomic::AtomicBool;
 const HEALTH_SNAPSHOT_NS: u64 = 1_000_000_000;
 
 /// One task a schedule can name.
+#[derive(Clone, Copy)]
 pub struct TaskEntry {
     /// Its name in `schedule.toml`.
     pub name: &'static str,
@@ -258,7 +259,7 @@ pub struct Wiring<'w> {
 
 impl<'w> Wiring<'w> {
     /// The task's log stream with its tap.
-    fn tapped_log(&mut self) -> Result<TappedSink<'w, LogStream>, String> {
+    pub fn tapped_log(&mut self) -> Result<TappedSink<'w, LogStream>, String> {
         let inner = self
             .log
             .take()
@@ -269,7 +270,8 @@ impl<'w> Wiring<'w> {
         })
     }
 
-    fn device(&mut self) -> Result<(DevicePort, u64), String> {
+    /// The task's device port and its staleness timeout.
+    pub fn device(&mut self) -> Result<(DevicePort, u64), String> {
         self.device
             .take()
             .ok_or_else(|| "the flight has no port for this task's device".to_string())
