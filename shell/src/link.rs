@@ -296,7 +296,7 @@ impl SourceShares {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use skyframe_core::link::auth::LinkCounters;
+    use skyframe_core::link::counters::LinkCounters;
     use skyframe_core::link::frame::{Envelope, encode_datagram};
     use skyframe_core::link::messages::{Command, Message};
     use std::os::unix::fs::PermissionsExt;

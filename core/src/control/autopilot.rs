@@ -15,8 +15,8 @@
 use super::pid::{Pid, PidGains, PidTerms};
 use super::wind::WindEstimator;
 use crate::angles::wrap_pi_f32;
+use crate::control::controls::Controls;
 use crate::estimation::Estimate;
-use crate::tasks::servo::Controls;
 
 const G: f32 = 9.806_65;
 

@@ -3,6 +3,7 @@
 //! pilot and the parameters.
 
 pub mod autopilot;
+pub mod controls;
 pub mod mission;
 pub mod mode;
 pub mod pid;

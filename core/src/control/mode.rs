@@ -3,7 +3,30 @@
 //! unhealthy, in which case control goes back to the pilot and says why.
 
 use crate::devices::servo::ControlMode;
-use crate::link::messages::FlightMode;
+
+/// What the vehicle flies in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[repr(u8)]
+pub enum FlightMode {
+    /// The pilot's commands go straight to the servos.
+    Manual = 0,
+    /// The pilot's sticks command attitude; the controller holds it.
+    Stabilise = 1,
+    /// The controller flies.
+    Auto = 2,
+}
+
+impl FlightMode {
+    pub fn from_u8(value: u8) -> Option<Self> {
+        match value {
+            0 => Some(Self::Manual),
+            1 => Some(Self::Stabilise),
+            2 => Some(Self::Auto),
+            _ => None,
+        }
+    }
+}
 
 /// Why the active mode is what it is.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -15,7 +15,7 @@ use super::ekf::{
 };
 use super::geo::{GeoPoint, LocalFrame};
 use crate::devices::gps::GpsFix;
-use crate::link::messages::HorizonAttitude;
+use crate::horizon::HorizonAttitude;
 
 /// Where the initial yaw comes from.
 #[derive(Clone, Copy, Debug, PartialEq)]

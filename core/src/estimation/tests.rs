@@ -9,7 +9,7 @@ use super::ekf::{
 use super::estimator::{Estimator, EstimatorConfig, HeadingSource, HealthReason, Phase};
 use crate::angles::wrap_pi;
 use crate::devices::gps::GpsFix;
-use crate::link::messages::HorizonAttitude;
+use crate::horizon::HorizonAttitude;
 use nalgebra::{Cholesky, SymmetricEigen, UnitQuaternion, Vector3};
 
 const DT: f64 = 0.01;

@@ -14,6 +14,7 @@
 //! 7. roll and pitch from the conventions' horizon line, a confidence in [0, 1], and tracking:
 //!    a jump away from the tracked line must be clearly better to be taken.
 
+mod attitude;
 mod camera;
 mod edges;
 mod frame;
@@ -22,6 +23,7 @@ mod profile;
 #[cfg(test)]
 mod tests;
 
+pub use attitude::HorizonAttitude;
 pub use camera::Camera;
 pub use edges::{EdgePoint, MAX_WORKING_WIDTH, Sample};
 pub use frame::{Frame, FrameError, Pixels};

@@ -221,24 +221,36 @@ pub enum Verify<'k> {
     Required(&'k LinkKey),
 }
 
-/// Parses, authenticates (as asked) and decodes one datagram. For the ground side and for
-/// tests; the vehicle's commands go through [`super::auth::CommandGate`], which also keeps
-/// the replay windows and the counters.
+impl Frame<'_> {
+    /// Checks the tag as `verify` asks: the one place a datagram is authenticated.
+    pub fn verify(&self, verify: Verify<'_>) -> Result<(), FrameError> {
+        match (verify, self.tag) {
+            (Verify::Required(_), None) => Err(FrameError::Unsigned),
+            (Verify::Required(key) | Verify::IfSigned(key), Some(tag))
+                if !auth::verify(key, self.signed_part, tag) =>
+            {
+                Err(FrameError::BadSignature)
+            }
+            _ => Ok(()),
+        }
+    }
+
+    /// The typed message the payload holds.
+    pub fn message(&self) -> Result<Message, FrameError> {
+        Message::decode_payload(self.header.message_type, self.payload)
+            .map_err(|_| FrameError::Malformed)
+    }
+}
+
+/// Parses, authenticates (as asked) and decodes one datagram: the one decode path, parse →
+/// verify → decode. The vehicle's command gate ([`super::auth::CommandGate`]) takes the same
+/// three steps with its own checks between them (vehicle id before the tag, run id and
+/// replay window before the payload).
 pub fn decode_datagram(
     datagram: &[u8],
     verify: Verify<'_>,
 ) -> Result<(Header, Message), FrameError> {
     let frame = parse_frame(datagram)?;
-    match (verify, frame.tag) {
-        (Verify::Required(_), None) => return Err(FrameError::Unsigned),
-        (Verify::Required(key) | Verify::IfSigned(key), Some(tag))
-            if !auth::verify(key, frame.signed_part, tag) =>
-        {
-            return Err(FrameError::BadSignature);
-        }
-        _ => {}
-    }
-    let message = Message::decode_payload(frame.header.message_type, frame.payload)
-        .map_err(|_| FrameError::Malformed)?;
-    Ok((frame.header, message))
+    frame.verify(verify)?;
+    Ok((frame.header, frame.message()?))
 }

@@ -5,7 +5,8 @@
 //! only. The task adds these counts to its own ([`LinkCounters`]), so the ground and
 //! `link.bin` show one set of counters.
 
-use super::auth::{LinkCounters, RejectReason};
+use super::auth::RejectReason;
+use super::counters::LinkCounters;
 use core::sync::atomic::{AtomicU32, Ordering};
 
 #[derive(Debug, Default)]

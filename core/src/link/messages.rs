@@ -5,9 +5,11 @@
 //! vehicle. The message type byte says which (`0x01..=0x7F` telemetry, `0x81..=0xFF`
 //! commands), so a vehicle can refuse anything that is not a command before decoding it.
 
-use super::auth::LinkCounters;
+use super::counters::LinkCounters;
 use super::wire::{Reader, WireError, Writer};
+use crate::control::mode::FlightMode;
 use crate::executive::FrameStats;
+use crate::horizon::HorizonAttitude;
 use crate::logfmt::record::{TIME_LEN, Time};
 use heapless::Vec;
 
@@ -217,30 +219,6 @@ impl Value {
         match r.u8()? {
             0 => Ok(None),
             tag => Self::decode_after_tag(tag, r).map(Some),
-        }
-    }
-}
-
-/// What the vehicle flies in.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-#[repr(u8)]
-pub enum FlightMode {
-    /// The pilot's commands go straight to the servos.
-    Manual = 0,
-    /// The pilot's sticks command attitude; the controller holds it.
-    Stabilise = 1,
-    /// The controller flies.
-    Auto = 2,
-}
-
-impl FlightMode {
-    pub fn from_u8(value: u8) -> Option<Self> {
-        match value {
-            0 => Some(Self::Manual),
-            1 => Some(Self::Stabilise),
-            2 => Some(Self::Auto),
-            _ => None,
         }
     }
 }
@@ -455,18 +433,6 @@ pub enum Telemetry {
     ExecutiveStatus(ExecutiveStatus),
     ParamValue(ParamValue),
     CommandAck(CommandAck),
-}
-
-/// Roll and pitch measured from a camera image by the ground's horizon detector.
-#[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct HorizonAttitude {
-    pub roll_rad: f32,
-    pub pitch_rad: f32,
-    /// In [0, 1].
-    pub confidence: f32,
-    /// When the image was captured, on the vehicle's executive clock.
-    pub capture_t_ns: u64,
 }
 
 /// Ground → vehicle.

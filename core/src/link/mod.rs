@@ -8,11 +8,14 @@
 //! - [`frame`]: header, CRC-32, signing and the datagram as a whole;
 //! - [`messages`]: the typed messages in both directions;
 //! - [`params`]: the table of parameters the ground can read and set;
-//! - [`auth`]: keys, tags, replay windows and the [`CommandGate`];
+//! - [`counters`]: what the link received, accepted, refused (and why) and sent;
+//! - [`auth`]: the key and its tags ([`auth::key`]), and the [`CommandGate`] with its replay
+//!   windows ([`auth::gate`]);
 //! - [`ingress`]: what the shell drops before queueing (screened out, rate limited);
 //! - [`telemetry`]: when the vehicle sends what, and its datagrams' envelopes.
 
 pub mod auth;
+pub mod counters;
 pub mod frame;
 pub mod ingress;
 pub mod messages;
@@ -21,9 +24,9 @@ pub mod telemetry;
 pub mod wire;
 
 pub use auth::{
-    AcceptedCommand, CommandGate, GateConfig, LinkCounters, LinkKey, RejectReason, Rejected,
-    ReplayWindow,
+    AcceptedCommand, CommandGate, GateConfig, LinkKey, RejectReason, Rejected, ReplayWindow,
 };
+pub use counters::LinkCounters;
 pub use frame::{
     Envelope, FrameError, Header, MAX_DATAGRAM_LEN, Verify, decode_datagram, encode_datagram,
 };

@@ -14,17 +14,20 @@
 //! telemetry task shares through a `RefCell`: `try_borrow`, and if the table is busy the
 //! step keeps the gains it had.
 
-use super::servo::{ComputerCommand, Controls, PilotInput};
+use super::servo::PilotInput;
 use super::task_log::TaskLog;
 use crate::angles::wrap_pi_f32;
 use crate::comm::{LatestSlot, RecordSink, SlotReader};
 use crate::control::autopilot::{Autopilot, AutopilotGains, Targets};
+use crate::control::controls::ComputerCommand;
+use crate::control::controls::Controls;
 use crate::control::mission::{Mission, MissionProgress};
+use crate::control::mode::FlightMode;
 use crate::control::mode::{ModeDecision, ModeInputs, decide};
 use crate::control::pid::PidGains;
 use crate::estimation::Estimate;
 use crate::executive::{Task, TaskContext, TaskFault};
-use crate::link::messages::{FlightMode, Value};
+use crate::link::messages::Value;
 use crate::link::params::{DefineError, ParamTable};
 use core::cell::RefCell;
 

@@ -3,9 +3,11 @@
 
 use super::gps::GpsTask;
 use super::imu::ImuTask;
-use super::servo::{ComputerCommand, Controls, PilotInput, ServoTask};
+use super::servo::{PilotInput, ServoTask};
 use super::test_support::{MS, SetClock, run_frames};
 use crate::comm::{LatestSlot, RecordSink};
+use crate::control::controls::ComputerCommand;
+use crate::control::controls::Controls;
 use crate::devices::gps::{GpsConfig, GpsFix, SentenceKind, Talker, encode_sentence};
 use crate::devices::imu::{
     IMU_FRAME_LEN, ImuMeasurement, ImuSample, ImuStatus, SlowSlot, encode_imu_frame,

@@ -15,7 +15,7 @@ use crate::devices::gps::GpsFix;
 use crate::devices::imu::ImuSample;
 use crate::estimation::{Estimate, Estimator, EstimatorConfig, HealthReason, Phase};
 use crate::executive::{Task, TaskContext, TaskFault};
-use crate::link::messages::HorizonAttitude;
+use crate::horizon::HorizonAttitude;
 
 crate::log_record! {
     /// The state, every step (format 1).

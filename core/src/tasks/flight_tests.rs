@@ -3,9 +3,12 @@
 
 use super::control::{CONTROL_INDEX, ControlSettings, ControlTask, GAINS_INDEX, define_params};
 use super::estimator::{EstimatorTask, HEALTH_INDEX, SD_INDEX, STATE_INDEX};
-use super::servo::{ComputerCommand, Controls, PilotInput};
+use super::servo::PilotInput;
 use crate::comm::{LatestSlot, RecordSink};
+use crate::control::controls::ComputerCommand;
+use crate::control::controls::Controls;
 use crate::control::mission::{Mission, Waypoint};
+use crate::control::mode::FlightMode;
 use crate::control::mode::ModeReason;
 use crate::devices::gps::GpsFix;
 use crate::devices::imu::{ImuMeasurement, ImuSample};
@@ -13,7 +16,8 @@ use crate::devices::servo::{BoardStatus, ControlMode, PilotReport};
 use crate::estimation::alignment::AlignmentConfig;
 use crate::estimation::{Estimate, EstimatorConfig, HeadingSource, HealthReason, Phase};
 use crate::executive::{HealthBoard, Task, TaskContext};
-use crate::link::messages::{FlightMode, HorizonAttitude, Name, Value};
+use crate::horizon::HorizonAttitude;
+use crate::link::messages::{Name, Value};
 use crate::link::params::ParamTable;
 use crate::logfmt::reader::{Event, LogReader, Record, read_slice};
 use core::cell::RefCell;

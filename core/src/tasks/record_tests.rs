@@ -23,7 +23,7 @@ fn every_task_record_is_a_sound_declaration() {
         check::<super::servo::ServoCommandLog>(),
         check::<super::control::ControlLog>(),
         check::<super::control::ControlGainsLog>(),
-        check::<crate::link::auth::LinkCounters>(),
+        check::<crate::link::counters::LinkCounters>(),
     ];
     for (format, result) in records {
         assert_eq!(result, Ok(()), "{format:?}");

@@ -9,6 +9,7 @@
 use super::device_status::DeviceStatusLog;
 use super::task_log::TaskLog;
 use crate::comm::{LatestSlot, RecordSink, SlotReader};
+use crate::control::controls::{ComputerCommand, Controls};
 use crate::devices::DecoderStats;
 use crate::devices::port::{CommandWriter, drain};
 use crate::devices::servo::{
@@ -61,26 +62,6 @@ pub const THROTTLE_CHANNEL: usize = 2;
 pub const RUDDER_CHANNEL: usize = 3;
 
 pub const MAX_BYTES_PER_STEP: usize = 512;
-
-/// The four controls, normalised (`conventions.md`: surfaces in [−1, 1], throttle in [0, 1]).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct Controls {
-    pub aileron: f32,
-    pub elevator: f32,
-    pub throttle: f32,
-    pub rudder: f32,
-}
-
-/// What the computer wants the servos to do.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct ComputerCommand {
-    pub controls: Controls,
-    /// The controller vouches for these commands; without it the board keeps the pilot in
-    /// control.
-    pub ready: bool,
-}
 
 /// The pilot's side as the board reported it, in the controls' units.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -21,13 +21,16 @@
 use super::tap::Tap;
 use super::task_log::TaskLog;
 use crate::comm::{LatestSlot, LogHealthCell, RecordSink};
+use crate::control::mode::FlightMode;
 use crate::executive::{Task, TaskContext, TaskFault};
-use crate::link::auth::{CommandGate, GateConfig, LinkCounters, LinkKey};
+use crate::horizon::HorizonAttitude;
+use crate::link::auth::{CommandGate, GateConfig, LinkKey};
+use crate::link::counters::LinkCounters;
 use crate::link::frame::{Envelope, MAX_DATAGRAM_LEN, encode_datagram};
 use crate::link::ingress::IngressCounters;
 use crate::link::messages::{
-    AckResult, Command, CommandAck, ExecutiveStatus, FlightMode, HorizonAttitude, Message, Name,
-    TaskData, TaskFormat, TaskStatus, Telemetry, Value,
+    AckResult, Command, CommandAck, ExecutiveStatus, Message, Name, TaskData, TaskFormat,
+    TaskStatus, Telemetry, Value,
 };
 use crate::link::params::{ParamTable, SetParamResult};
 use crate::link::telemetry::{Due, TelemetrySchedule, VehicleEnvelopes};

@@ -7,8 +7,9 @@ use crate::key::{self, SequenceStore};
 use crate::model::{GroundModel, time_s, value_as_f64};
 use crate::net::{CommandError, CommandSender, GroundLink, Incoming, Session};
 use clap::{Args, Parser, Subcommand, ValueEnum};
+use skyframe_core::control::mode::FlightMode;
 use skyframe_core::link::messages::{
-    AckResult, Command, CommandAck, FlightMode, Name, Value, ValueType, limits,
+    AckResult, Command, CommandAck, Name, Value, ValueType, limits,
 };
 use skyframe_core::logfmt::Time;
 use std::io::Write;

@@ -5,12 +5,13 @@
 //! telemetry and receives commands, as the real vehicle's does.
 
 use nalgebra::Vector3;
+use skyframe_core::control::mode::FlightMode;
 use skyframe_core::estimation::geo::{GeoPoint, LocalFrame};
 use skyframe_core::link::auth::{CommandGate, GateConfig, LinkKey};
 use skyframe_core::link::frame::{MAX_DATAGRAM_LEN, encode_datagram};
 use skyframe_core::link::messages::{
-    AckResult, Command, CommandAck, ExecutiveStatus, FlightMode, Message, Name, TaskData,
-    TaskFormat, TaskStatus, Telemetry, Value,
+    AckResult, Command, CommandAck, ExecutiveStatus, Message, Name, TaskData, TaskFormat,
+    TaskStatus, Telemetry, Value,
 };
 use skyframe_core::link::params::ParamTable;
 use skyframe_core::link::telemetry::{Due, TelemetrySchedule, VehicleEnvelopes};

@@ -5,8 +5,9 @@ use crate::cli::{ack_result_name, value_text};
 use crate::model::GroundModel;
 use crate::net::{Incoming, Received};
 use serde_json::{Map, Value as Json, json};
+use skyframe_core::control::mode::FlightMode;
 use skyframe_core::link::frame::{FrameError, Header};
-use skyframe_core::link::messages::{FlightMode, LogHealth, Telemetry, Value};
+use skyframe_core::link::messages::{LogHealth, Telemetry, Value};
 
 pub fn value_json(value: &Value) -> Json {
     match *value {

@@ -4,10 +4,11 @@
 use ratatui::Terminal;
 use ratatui::backend::TestBackend;
 use ratatui::crossterm::event::{KeyCode, KeyEvent, KeyModifiers};
+use skyframe_core::control::mode::FlightMode;
 use skyframe_core::link::frame::{Envelope, Header};
 use skyframe_core::link::messages::{
-    AckResult, Command, CommandAck, ExecutiveStatus, FlightMode, TaskData, TaskFormat, Telemetry,
-    Value, message_type,
+    AckResult, Command, CommandAck, ExecutiveStatus, TaskData, TaskFormat, Telemetry, Value,
+    message_type,
 };
 use skyframe_core::logfmt::Time;
 use skyframe_ground::fake_vehicle::{TASKS, sample_task_status, sample_values};

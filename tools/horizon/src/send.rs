@@ -10,10 +10,10 @@
 
 use crate::Error;
 use skyframe_core::horizon::Horizon;
+use skyframe_core::horizon::HorizonAttitude;
 use skyframe_core::link::frame::{
     Envelope, MAX_DATAGRAM_LEN, Verify, decode_datagram, encode_datagram,
 };
-use skyframe_core::link::messages::HorizonAttitude;
 use skyframe_core::link::{Command, LinkKey, Message};
 use std::net::{SocketAddr, ToSocketAddrs, UdpSocket};
 use std::path::{Path, PathBuf};

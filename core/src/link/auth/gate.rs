@@ -1,78 +1,12 @@
-//! Command authentication: HMAC-SHA256 tags, per-sender replay windows, and the gate every
-//! command datagram passes before the vehicle acts on it.
+//! The command gate every command datagram passes before the vehicle acts on it: the checks
+//! that need no state (shared with the shell's socket thread), then the run id, the
+//! per-sender replay windows, the payload and the ranges. Counts every outcome.
 
-use super::frame::{self, FrameError};
-use super::messages::{AckResult, Command, CommandAck, Value, message_type};
-use super::params::{ParamTable, SetParamResult};
-use super::wire::{Reader, WireError, Writer};
-use hmac::{Hmac, KeyInit, Mac};
-use sha2::Sha256;
-
-pub const KEY_LEN: usize = 32;
-
-/// The pre-shared key. Its `Debug` does not print it.
-#[derive(Clone, PartialEq, Eq)]
-pub struct LinkKey([u8; KEY_LEN]);
-
-impl LinkKey {
-    pub const fn new(bytes: [u8; KEY_LEN]) -> Self {
-        Self(bytes)
-    }
-
-    /// Exactly 64 hex digits (either case), as a key file or `--key` would hold them.
-    pub fn from_hex(text: &str) -> Option<Self> {
-        let text = text.as_bytes();
-        if text.len() != 2 * KEY_LEN {
-            return None;
-        }
-        let mut bytes = [0u8; KEY_LEN];
-        for (byte, pair) in bytes.iter_mut().zip(text.chunks_exact(2)) {
-            let (&high, &low) = (pair.first()?, pair.get(1)?);
-            *byte = hex_digit(high)? << 4 | hex_digit(low)?;
-        }
-        Some(Self(bytes))
-    }
-}
-
-fn hex_digit(c: u8) -> Option<u8> {
-    match c {
-        b'0'..=b'9' => Some(c - b'0'),
-        b'a'..=b'f' => Some(c - b'a' + 10),
-        b'A'..=b'F' => Some(c - b'A' + 10),
-        _ => None,
-    }
-}
-
-impl core::fmt::Debug for LinkKey {
-    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        f.write_str("LinkKey(..)")
-    }
-}
-
-#[cfg(feature = "defmt")]
-impl defmt::Format for LinkKey {
-    fn format(&self, f: defmt::Formatter<'_>) {
-        defmt::write!(f, "LinkKey(..)")
-    }
-}
-
-fn mac(key: &LinkKey, signed_part: &[u8]) -> Option<Hmac<Sha256>> {
-    // HMAC takes keys of any length, so this cannot fail; `None` just keeps it panic-free.
-    let mut mac = Hmac::<Sha256>::new_from_slice(&key.0).ok()?;
-    mac.update(signed_part);
-    Some(mac)
-}
-
-/// The HMAC-SHA256 tag of `signed_part` (a datagram's header and payload).
-pub fn sign(key: &LinkKey, signed_part: &[u8]) -> Option<[u8; frame::TAG_LEN]> {
-    Some(mac(key, signed_part)?.finalize().into_bytes().into())
-}
-
-/// Constant-time check of a tag (the crate's `verify_slice`): the time taken does not tell
-/// an attacker how many leading bytes were right.
-pub fn verify(key: &LinkKey, signed_part: &[u8], tag: &[u8]) -> bool {
-    mac(key, signed_part).is_some_and(|m| m.verify_slice(tag).is_ok())
-}
+use super::key::LinkKey;
+use crate::link::counters::LinkCounters;
+use crate::link::frame::{self, FrameError};
+use crate::link::messages::{AckResult, Command, CommandAck, Message, Value, message_type};
+use crate::link::params::{ParamTable, SetParamResult};
 
 /// How far behind the newest sequence number a late datagram may still be accepted.
 pub const REPLAY_WINDOW: u32 = 64;
@@ -212,136 +146,6 @@ impl ReplayGuard {
     }
 }
 
-crate::log_record! {
-    /// The link's counters, sent in every executive status and logged (`link.bin`) once a
-    /// second and at the end, so what was refused and why is in the flight's log, not only
-    /// on the ground. Saturating `u32`s; the field order is the wire order
-    /// (`docs/link-protocol.md`) and the log's column order.
-    ///
-    /// The command side counts every datagram the gate sees: `received` equals `accepted`
-    /// plus the sum of the rejection counters.
-    #[derive(Eq)]
-    #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-    pub struct LinkCounters {
-        received: u32 = "%u",
-        accepted: u32 = "%u",
-        bad_crc: u32 = "%u",
-        /// Bad length, magic, version or flags, a payload that does not decode, or not a
-        /// command at all.
-        malformed: u32 = "%u",
-        wrong_vehicle: u32 = "%u",
-        unsigned: u32 = "%u",
-        bad_signature: u32 = "%u",
-        /// Authentic, but from another run of the vehicle (a recording replayed, or a ground
-        /// station that has not heard the vehicle since it restarted).
-        wrong_run: u32 = "%u",
-        /// Duplicate or too old for the sender's replay window.
-        replayed: u32 = "%u",
-        /// A new sender when every replay window is taken.
-        too_many_senders: u32 = "%u",
-        out_of_range: u32 = "%u",
-        unknown_param: u32 = "%u",
-        wrong_type: u32 = "%u",
-        /// Telemetry datagrams handed to the socket, and ones it refused (counted by the
-        /// sender, not the gate).
-        telemetry_sent: u32 = "%u",
-        telemetry_send_failed: u32 = "%u",
-        /// Dropped unread by the shell because their source sent more than its share
-        /// ([`crate::link::ingress`]): a flood, counted, never queued.
-        rate_limited: u32 = "%u",
-    }
-}
-
-/// Number of `u32` counters on the wire.
-pub const LINK_COUNTERS: usize = 16;
-
-impl LinkCounters {
-    /// The counters in wire order (`docs/link-protocol.md`), which is also the column order of
-    /// `link.bin`.
-    pub fn as_array(&self) -> [u32; LINK_COUNTERS] {
-        [
-            self.received,
-            self.accepted,
-            self.bad_crc,
-            self.malformed,
-            self.wrong_vehicle,
-            self.unsigned,
-            self.bad_signature,
-            self.wrong_run,
-            self.replayed,
-            self.too_many_senders,
-            self.out_of_range,
-            self.unknown_param,
-            self.wrong_type,
-            self.telemetry_sent,
-            self.telemetry_send_failed,
-            self.rate_limited,
-        ]
-    }
-
-    /// Rejected commands of every kind.
-    pub fn rejected(&self) -> u32 {
-        [
-            self.rate_limited,
-            self.bad_crc,
-            self.malformed,
-            self.wrong_vehicle,
-            self.unsigned,
-            self.bad_signature,
-            self.wrong_run,
-            self.replayed,
-            self.too_many_senders,
-            self.out_of_range,
-            self.unknown_param,
-            self.wrong_type,
-        ]
-        .iter()
-        .fold(0u32, |sum, &count| sum.saturating_add(count))
-    }
-
-    pub(crate) fn encode(&self, w: &mut Writer<'_>) -> Result<(), WireError> {
-        self.as_array().iter().try_for_each(|&c| w.u32(c))
-    }
-
-    pub(crate) fn decode(r: &mut Reader<'_>) -> Result<Self, WireError> {
-        Ok(Self {
-            received: r.u32()?,
-            accepted: r.u32()?,
-            bad_crc: r.u32()?,
-            malformed: r.u32()?,
-            wrong_vehicle: r.u32()?,
-            unsigned: r.u32()?,
-            bad_signature: r.u32()?,
-            wrong_run: r.u32()?,
-            replayed: r.u32()?,
-            too_many_senders: r.u32()?,
-            out_of_range: r.u32()?,
-            unknown_param: r.u32()?,
-            wrong_type: r.u32()?,
-            telemetry_sent: r.u32()?,
-            telemetry_send_failed: r.u32()?,
-            rate_limited: r.u32()?,
-        })
-    }
-
-    fn count(&mut self, reason: RejectReason) {
-        let counter = match reason {
-            RejectReason::BadCrc => &mut self.bad_crc,
-            RejectReason::Malformed => &mut self.malformed,
-            RejectReason::WrongVehicle => &mut self.wrong_vehicle,
-            RejectReason::Unsigned => &mut self.unsigned,
-            RejectReason::BadSignature => &mut self.bad_signature,
-            RejectReason::WrongRun => &mut self.wrong_run,
-            RejectReason::Replayed => &mut self.replayed,
-            RejectReason::TooManySenders => &mut self.too_many_senders,
-            RejectReason::OutOfRange => &mut self.out_of_range,
-            RejectReason::UnknownParam => &mut self.unknown_param,
-            RejectReason::WrongType => &mut self.wrong_type,
-        };
-        *counter = counter.saturating_add(1);
-    }
-}
-
 /// The checks that need no state: a whole datagram, a command, for this vehicle, signed
 /// with our key. The gate runs them first; the shell's socket thread runs the same ones
 /// before it queues anything, so a flood of forgeries never reaches the task
@@ -361,10 +165,12 @@ pub fn screen_command<'d>(
     if frame.header.envelope.vehicle_id != vehicle_id {
         return Err(RejectReason::WrongVehicle);
     }
-    let tag = frame.tag.ok_or(RejectReason::Unsigned)?;
-    if !verify(key, frame.signed_part, tag) {
-        return Err(RejectReason::BadSignature);
-    }
+    frame
+        .verify(frame::Verify::Required(key))
+        .map_err(|e| match e {
+            FrameError::Unsigned => RejectReason::Unsigned,
+            _ => RejectReason::BadSignature,
+        })?;
     Ok(frame)
 }
 
@@ -509,8 +315,9 @@ impl CommandGate {
                     GuardError::TooManySenders => RejectReason::TooManySenders,
                 })
             })?;
-        let command = Command::decode_payload(header.message_type, frame.payload)
-            .map_err(|_| drop(RejectReason::Malformed))?;
+        let Ok(Message::Command(command)) = frame.message() else {
+            return Err(drop(RejectReason::Malformed));
+        };
         let accepted = AcceptedCommand {
             sender_id: envelope.sender_id,
             sequence: envelope.sequence,
