@@ -4,11 +4,11 @@
 //! simulated airplane, writes its own log that `skyframe-log to-csv` converts, and its values
 //! reach the ground on the live link — equal to what it logged.
 
-use skyframe_core::comm::RecordSink;
 use skyframe_core::executive::{Task, TaskContext, TaskFault};
 use skyframe_core::link::frame::{Verify, decode_datagram};
 use skyframe_core::link::messages::{Message, TaskData, Telemetry, Value as LinkValue};
 use skyframe_core::logfmt::LogRecord;
+use skyframe_core::logfmt::RecordSink;
 use skyframe_core::tasks::task_log::TaskLog;
 use skyframe_logtable::{load_stream, time_ns};
 use skyframe_shell::check_schedule::{check_file_with, load_frame_table};

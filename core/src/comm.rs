@@ -25,31 +25,6 @@ impl<T> Sink<T> for Producer<'_, T> {
     }
 }
 
-/// Where a task's encoded log records go: a ring the shell's log writer drains. Takes a
-/// whole record or nothing, and never waits.
-pub trait RecordSink {
-    fn push_record(&mut self, record: &[u8]) -> bool;
-
-    /// A declared record's format, after its declaration went into the log: for a sink that
-    /// also shows the task's data elsewhere (the telemetry [`Tap`](crate::tasks::tap::Tap)).
-    fn declared(&mut self, _index: u8, _format: &crate::logfmt::LogFormat) {}
-
-    /// The typed values of the Data Block the log has just taken, as the task declared them:
-    /// what the telemetry tap keeps, so nothing re-parses the bytes.
-    fn logged(&mut self, _index: u8, _time: crate::logfmt::Time, _values: &[crate::logfmt::Value]) {
-    }
-}
-
-/// The sink of a task built without a log (unit tests, tools): takes every record, keeps none.
-#[derive(Clone, Copy, Debug, Default)]
-pub struct NoLog;
-
-impl RecordSink for NoLog {
-    fn push_record(&mut self, _record: &[u8]) -> bool {
-        true
-    }
-}
-
 /// The newest value of something, shared between tasks of one executive (one thread).
 ///
 /// Single-threaded by construction (`Cell`, so not `Sync`): tasks of a cyclic executive never

@@ -7,14 +7,14 @@
 //! per frame (frame work less the tasks' time) shows its overhead.
 
 use crate::cyclictest::CyclictestFigures;
-use crate::host::{RunOptions, TimerCheckConfig, run_executive};
+use crate::host::{RunOptions, TimerCheckConfig, bare_sleep_loop, run_executive};
 use crate::idle::idle_tasks;
 use crate::platform::{Platform, RtConfig, RtReport};
 use crate::stats::{Distribution, ratio};
 use serde::Serialize;
-use skyframe_core::executive::{FaultPlan, FrameTimer, Task};
+use skyframe_core::executive::{FaultPlan, Task};
 use skyframe_core::schedule::FrameTable;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::AtomicBool;
 use std::time::Duration;
 
 #[derive(Debug, Serialize)]
@@ -77,27 +77,6 @@ impl LatencyRatio {
             max: ratio(a.max, b.max),
         }
     }
-}
-
-/// Sleeps to each absolute release `period_ns` apart for `duration` and records how late each
-/// wake-up was, in ns.
-pub fn bare_sleep_loop<T: FrameTimer>(
-    timer: &T,
-    period_ns: u64,
-    duration: Duration,
-    stop: &AtomicBool,
-) -> Vec<u64> {
-    let start = timer.now_ns() + period_ns;
-    let end = start.saturating_add(u64::try_from(duration.as_nanos()).unwrap_or(u64::MAX));
-    let mut latencies =
-        Vec::with_capacity((duration.as_nanos() / u128::from(period_ns.max(1))) as usize + 1);
-    let mut release = start;
-    while release < end && !stop.load(Ordering::Relaxed) {
-        timer.sleep_until(release);
-        latencies.push(timer.now_ns().saturating_sub(release));
-        release += period_ns;
-    }
-    latencies
 }
 
 /// What to measure.

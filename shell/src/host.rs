@@ -67,8 +67,7 @@ fn check_timer<T: FrameTimer>(
         return None;
     }
     let never = AtomicBool::new(false);
-    let mut samples =
-        crate::bench::bare_sleep_loop(timer, TIMER_CHECK_PERIOD_NS, config.duration, &never);
+    let mut samples = bare_sleep_loop(timer, TIMER_CHECK_PERIOD_NS, config.duration, &never);
     let latency = Distribution::of(&mut samples).scaled(1e-3);
     let margin_us = table.margin_ns as f64 / 1e3;
     Some(TimerCheck {
@@ -348,6 +347,27 @@ pub fn stop_on_signals(flag: &std::sync::Arc<AtomicBool>) -> std::io::Result<()>
         signal_hook::flag::register(signal, std::sync::Arc::clone(flag))?;
     }
     Ok(())
+}
+
+/// Sleeps to each absolute release `period_ns` apart for `duration` and records how late each
+/// wake-up was, in ns.
+pub fn bare_sleep_loop<T: FrameTimer>(
+    timer: &T,
+    period_ns: u64,
+    duration: Duration,
+    stop: &AtomicBool,
+) -> Vec<u64> {
+    let start = timer.now_ns() + period_ns;
+    let end = start.saturating_add(u64::try_from(duration.as_nanos()).unwrap_or(u64::MAX));
+    let mut latencies =
+        Vec::with_capacity((duration.as_nanos() / u128::from(period_ns.max(1))) as usize + 1);
+    let mut release = start;
+    while release < end && !stop.load(Ordering::Relaxed) {
+        timer.sleep_until(release);
+        latencies.push(timer.now_ns().saturating_sub(release));
+        release += period_ns;
+    }
+    latencies
 }
 
 #[cfg(test)]

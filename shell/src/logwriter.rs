@@ -125,7 +125,7 @@ impl LogStream {
     }
 }
 
-impl skyframe_core::comm::RecordSink for LogStream {
+impl skyframe_core::logfmt::RecordSink for LogStream {
     fn push_record(&mut self, record: &[u8]) -> bool {
         LogStream::push_record(self, record)
     }

@@ -18,6 +18,7 @@ pub mod frame_log;
 pub mod printf;
 pub mod reader;
 pub mod record;
+pub mod sink;
 
 pub use csv::{
     write_byte_array_line, write_columns_line, write_data_line, write_format_line, write_header,
@@ -38,6 +39,7 @@ pub use record::{
     encode_byte_array, encode_data_block, encode_end_data, encode_format_comment,
     encode_format_definition,
 };
+pub use sink::{NoLog, RecordSink};
 
 #[cfg(test)]
 mod tests;

@@ -17,7 +17,7 @@
 use super::servo::PilotInput;
 use super::task_log::TaskLog;
 use crate::angles::wrap_pi_f32;
-use crate::comm::{LatestSlot, RecordSink, SlotReader};
+use crate::comm::{LatestSlot, SlotReader};
 use crate::control::autopilot::{Autopilot, AutopilotGains, Targets};
 use crate::control::controls::ComputerCommand;
 use crate::control::controls::Controls;
@@ -29,6 +29,7 @@ use crate::estimation::Estimate;
 use crate::executive::{Task, TaskContext, TaskFault};
 use crate::link::messages::Value;
 use crate::link::params::{DefineError, ParamTable};
+use crate::logfmt::RecordSink;
 use core::cell::RefCell;
 
 crate::log_record! {

@@ -3,9 +3,9 @@
 //! the totals at the end.
 
 use super::task_log::TaskLog;
-use crate::comm::RecordSink;
 use crate::devices::{Decoder, DecoderStats};
 use crate::executive::TaskContext;
+use crate::logfmt::RecordSink;
 use crate::logfmt::record::EncodeError;
 
 crate::log_record! {

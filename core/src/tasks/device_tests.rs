@@ -5,7 +5,7 @@ use super::gps::GpsTask;
 use super::imu::ImuTask;
 use super::servo::{PilotInput, ServoTask};
 use super::test_support::{MS, SetClock, run_frames};
-use crate::comm::{LatestSlot, RecordSink};
+use crate::comm::LatestSlot;
 use crate::control::controls::ComputerCommand;
 use crate::control::controls::Controls;
 use crate::devices::gps::{GpsConfig, GpsFix, SentenceKind, Talker, encode_sentence};
@@ -17,6 +17,7 @@ use crate::devices::servo::{
 };
 use crate::devices::test_support::MockPort;
 use crate::executive::{Executive, Task};
+use crate::logfmt::RecordSink;
 use crate::logfmt::printf::render_data_block;
 use crate::logfmt::reader::{Event, LogReader, Record, read_slice};
 use crate::schedule::{FrameTable, OverrunPolicy, TaskSlot};

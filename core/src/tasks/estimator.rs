@@ -10,12 +10,13 @@
 //! ("no IMU").
 
 use super::task_log::TaskLog;
-use crate::comm::{LatestSlot, RecordSink, SlotReader};
+use crate::comm::{LatestSlot, SlotReader};
 use crate::devices::gps::GpsFix;
 use crate::devices::imu::ImuSample;
 use crate::estimation::{Estimate, Estimator, EstimatorConfig, HealthReason, Phase};
 use crate::executive::{Task, TaskContext, TaskFault};
 use crate::horizon::HorizonAttitude;
+use crate::logfmt::RecordSink;
 
 crate::log_record! {
     /// The state, every step (format 1).

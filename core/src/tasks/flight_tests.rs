@@ -4,7 +4,7 @@
 use super::control::{CONTROL_INDEX, ControlSettings, ControlTask, GAINS_INDEX, define_params};
 use super::estimator::{EstimatorTask, HEALTH_INDEX, SD_INDEX, STATE_INDEX};
 use super::servo::PilotInput;
-use crate::comm::{LatestSlot, RecordSink};
+use crate::comm::LatestSlot;
 use crate::control::controls::ComputerCommand;
 use crate::control::controls::Controls;
 use crate::control::mission::{Mission, Waypoint};
@@ -19,6 +19,7 @@ use crate::executive::{HealthBoard, Task, TaskContext};
 use crate::horizon::HorizonAttitude;
 use crate::link::messages::{Name, Value};
 use crate::link::params::ParamTable;
+use crate::logfmt::RecordSink;
 use crate::logfmt::reader::{Event, LogReader, Record, read_slice};
 use core::cell::RefCell;
 use std::vec::Vec;

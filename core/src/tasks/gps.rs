@@ -4,11 +4,12 @@
 
 use super::device_status::DeviceStatusLog;
 use super::task_log::TaskLog;
-use crate::comm::{LatestSlot, RecordSink};
+use crate::comm::LatestSlot;
 use crate::devices::DecoderStats;
 use crate::devices::gps::{GpsConfig, GpsFix, NmeaDecoder};
 use crate::devices::port::drain;
 use crate::executive::{Task, TaskContext, TaskFault};
+use crate::logfmt::RecordSink;
 use embedded_io::{Read, ReadReady};
 
 crate::log_record! {

@@ -7,8 +7,9 @@
 //! release skipped, every step faulting. It counts those as misses, keeps the alive light for
 //! telemetry, and publishes a report into a latest-value slot.
 
-use crate::comm::{LatestSlot, NoLog, RecordSink};
+use crate::comm::LatestSlot;
 use crate::executive::{Task, TaskContext, TaskFault};
+use crate::logfmt::{NoLog, RecordSink};
 use crate::schedule::analysis::MAX_TASKS;
 use crate::tasks::task_log::TaskLog;
 

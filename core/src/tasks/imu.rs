@@ -3,11 +3,12 @@
 
 use super::device_status::DeviceStatusLog;
 use super::task_log::TaskLog;
-use crate::comm::{LatestSlot, RecordSink};
+use crate::comm::LatestSlot;
 use crate::devices::imu::{ImuDecoder, ImuFrame, ImuSample};
 use crate::devices::port::drain;
 use crate::devices::{Decoder, DecoderStats};
 use crate::executive::{Task, TaskContext, TaskFault};
+use crate::logfmt::RecordSink;
 use embedded_io::{Read, ReadReady};
 
 crate::log_record! {

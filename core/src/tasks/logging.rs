@@ -3,8 +3,8 @@
 //! resetting, not just the totals at the end.
 
 use super::task_log::TaskLog;
-use crate::comm::RecordSink;
 use crate::executive::{Task, TaskContext, TaskFault};
+use crate::logfmt::RecordSink;
 
 pub const HEALTH_FORMAT_INDEX: u8 = 1;
 crate::log_record! {

@@ -8,7 +8,7 @@
 
 use super::device_status::DeviceStatusLog;
 use super::task_log::TaskLog;
-use crate::comm::{LatestSlot, RecordSink, SlotReader};
+use crate::comm::{LatestSlot, SlotReader};
 use crate::control::controls::{ComputerCommand, Controls};
 use crate::devices::DecoderStats;
 use crate::devices::port::{CommandWriter, drain};
@@ -17,6 +17,7 @@ use crate::devices::servo::{
     ServoDecoder, pulse_us_to_surface, pulse_us_to_throttle,
 };
 use crate::executive::{Task, TaskContext, TaskFault};
+use crate::logfmt::RecordSink;
 use embedded_io::{Read, ReadReady, Write, WriteReady};
 
 crate::log_record! {

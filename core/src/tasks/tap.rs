@@ -8,8 +8,8 @@
 //! ([`RecordSink::declared`], [`RecordSink::logged`]): nothing re-parses the bytes, so the
 //! link and the log cannot disagree, and no task has to know about the link.
 
-use crate::comm::RecordSink;
 use crate::link::messages::{MAX_COLUMNS_LEN, MAX_TASK_VALUES, Value};
+use crate::logfmt::RecordSink;
 use crate::logfmt::record::Time;
 use crate::logfmt::{LogFormat, MAX_RECORD_FIELDS, printf};
 use core::cell::RefCell;

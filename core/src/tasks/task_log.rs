@@ -1,8 +1,8 @@
 //! A task's log: declares its records once, stamps them with the log clock, and counts every
 //! record its ring could not take in the task's health (nothing is dropped silently).
 
-use crate::comm::RecordSink;
 use crate::executive::TaskContext;
+use crate::logfmt::RecordSink;
 use crate::logfmt::record::{EncodeError, Time, encode_begin_data, encode_end_data};
 use crate::logfmt::{LogRecord, encode_record, record_values};
 

@@ -20,7 +20,7 @@
 
 use super::tap::Tap;
 use super::task_log::TaskLog;
-use crate::comm::{LatestSlot, LogHealthCell, RecordSink};
+use crate::comm::{LatestSlot, LogHealthCell};
 use crate::control::mode::FlightMode;
 use crate::executive::{Task, TaskContext, TaskFault};
 use crate::horizon::HorizonAttitude;
@@ -34,6 +34,7 @@ use crate::link::messages::{
 };
 use crate::link::params::{ParamTable, SetParamResult};
 use crate::link::telemetry::{Due, TelemetrySchedule, VehicleEnvelopes};
+use crate::logfmt::RecordSink;
 use crate::schedule::FrameTable;
 use crate::schedule::analysis::MAX_TASKS;
 use crate::tasks::health::WatchdogReport;

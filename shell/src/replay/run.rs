@@ -17,7 +17,7 @@
 //!   that release's time, as the airplane's GPS task stamps a fix when it drains it. The
 //!   estimator then dates the measurement `gps_latency_ns` earlier (its configuration).
 
-use skyframe_core::comm::{LatestSlot, NoLog, Sink};
+use skyframe_core::comm::{LatestSlot, Sink};
 use skyframe_core::devices::gps::GpsFix;
 use skyframe_core::devices::imu::{ImuMeasurement, ImuSample};
 use skyframe_core::estimation::ekf::{EkfCounters, NominalState};
@@ -25,6 +25,7 @@ use skyframe_core::estimation::geo::LocalFrame;
 use skyframe_core::estimation::nalgebra::{Quaternion, UnitQuaternion, Vector3};
 use skyframe_core::estimation::{Estimate, EstimatorConfig, Phase};
 use skyframe_core::executive::{Executive, FrameRecord, Task, TaskContext, TaskFault};
+use skyframe_core::logfmt::NoLog;
 use skyframe_core::schedule::SHIPPED;
 use skyframe_core::tasks::estimator::EstimatorTask;
 use skyframe_sim::VirtualClock;

@@ -6,7 +6,7 @@
 //! task's TaskFormat every 10 s, one TaskStatus per second in rotation and the
 //! ExecutiveStatus every 2 s, as `TelemetrySchedule` times them: about 122 datagrams/s.
 
-use crate::cli::Exit;
+use crate::exit::Exit;
 use crate::fake_vehicle::{FakeVehicle, FakeVehicleConfig};
 use crate::model::GroundModel;
 use crate::net::{GroundLink, apply};

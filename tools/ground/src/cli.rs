@@ -2,15 +2,15 @@
 //! 1 the vehicle refused the command or did not answer in time, 2 usage, key or I/O error
 //! (one line on stderr).
 
+use crate::exit::Exit;
 use crate::json;
 use crate::key::{self, SequenceStore};
 use crate::model::{GroundModel, time_s, value_as_f64};
 use crate::net::{CommandError, CommandSender, GroundLink, Incoming, Session};
+use crate::values::{ack_result_name, interval_ms_for_hz, parse_value, type_name, value_text};
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use skyframe_core::control::mode::FlightMode;
-use skyframe_core::link::messages::{
-    AckResult, Command, CommandAck, Name, Value, ValueType, limits,
-};
+use skyframe_core::link::messages::{Command, CommandAck, Name, Value, limits};
 use skyframe_core::logfmt::Time;
 use std::io::Write;
 use std::net::SocketAddr;
@@ -173,28 +173,6 @@ impl From<ModeArg> for FlightMode {
     }
 }
 
-/// An error that ends the program, with its exit code.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Exit {
-    pub code: i32,
-    pub message: String,
-}
-
-impl Exit {
-    pub fn usage(message: impl Into<String>) -> Self {
-        Self {
-            code: 2,
-            message: message.into(),
-        }
-    }
-    pub fn refused(message: impl Into<String>) -> Self {
-        Self {
-            code: 1,
-            message: message.into(),
-        }
-    }
-}
-
 impl From<CommandError> for Exit {
     fn from(e: CommandError) -> Self {
         match e {
@@ -209,66 +187,6 @@ impl From<CommandError> for Exit {
             CommandError::Unusable(m) => Exit::usage(m),
         }
     }
-}
-
-pub fn ack_result_name(result: AckResult) -> &'static str {
-    match result {
-        AckResult::Accepted => "accepted",
-        AckResult::OutOfRange => "out of range",
-        AckResult::UnknownParam => "unknown parameter",
-        AckResult::WrongType => "wrong type",
-        AckResult::Refused => "refused",
-    }
-}
-
-pub fn value_text(value: &Value) -> String {
-    match *value {
-        Value::Bool(b) => b.to_string(),
-        Value::I32(v) => v.to_string(),
-        Value::U32(v) => v.to_string(),
-        Value::F32(v) => v.to_string(),
-        Value::F64(v) => v.to_string(),
-    }
-}
-
-pub fn type_name(value_type: ValueType) -> &'static str {
-    match value_type {
-        ValueType::Bool => "bool",
-        ValueType::I32 => "i32",
-        ValueType::U32 => "u32",
-        ValueType::F32 => "f32",
-        ValueType::F64 => "f64",
-    }
-}
-
-/// Reads `text` as a value of `value_type`.
-pub fn parse_value(text: &str, value_type: ValueType) -> Option<Value> {
-    let text = text.trim();
-    Some(match value_type {
-        ValueType::Bool => Value::Bool(match text {
-            "true" | "1" | "on" | "yes" => true,
-            "false" | "0" | "off" | "no" => false,
-            _ => return None,
-        }),
-        ValueType::I32 => Value::I32(text.parse().ok()?),
-        ValueType::U32 => Value::U32(text.parse().ok()?),
-        ValueType::F32 => Value::F32(text.parse::<f32>().ok().filter(|v| v.is_finite())?),
-        ValueType::F64 => Value::F64(text.parse::<f64>().ok().filter(|v| v.is_finite())?),
-    })
-}
-
-/// A telemetry rate in Hz as the interval the protocol carries (0 Hz: stop sending).
-pub fn interval_ms_for_hz(hz: f64) -> Option<u32> {
-    if hz == 0.0 {
-        return Some(0);
-    }
-    if !hz.is_finite() || hz < 0.0 {
-        return None;
-    }
-    let ms = (1000.0 / hz).round();
-    let range =
-        f64::from(limits::MIN_TELEMETRY_INTERVAL_MS)..=f64::from(limits::MAX_TELEMETRY_INTERVAL_MS);
-    range.contains(&ms).then_some(ms as u32)
 }
 
 /// What a subcommand needs of the key.
@@ -750,6 +668,7 @@ fn resolve_task(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use skyframe_core::link::messages::ValueType;
 
     #[test]
     fn values_are_read_as_the_parameters_type() {

@@ -1,9 +1,9 @@
 //! Messages as `monitor` prints them: one JSON object, or one line of text, per datagram.
 //! Field names follow the protocol's (`docs/link-protocol.md`), units in the names.
 
-use crate::cli::{ack_result_name, value_text};
 use crate::model::GroundModel;
 use crate::net::{Incoming, Received};
+use crate::values::{ack_result_name, value_text};
 use serde_json::{Map, Value as Json, json};
 use skyframe_core::control::mode::FlightMode;
 use skyframe_core::link::frame::{FrameError, Header};

@@ -3,9 +3,11 @@
 
 pub mod bench;
 pub mod cli;
+pub mod exit;
 pub mod fake_vehicle;
 pub mod json;
 pub mod key;
 pub mod model;
 pub mod net;
 pub mod ui;
+pub mod values;

@@ -8,12 +8,12 @@
 //! the seed's secondary network thread did), so slow drawing never overflows the socket's
 //! buffer.
 
-use crate::cli::{ack_result_name, interval_ms_for_hz, value_text};
 use crate::json::mode_name;
 use crate::model::{
     FormatState, GroundModel, HISTORY_SPAN_S, VehicleState, column_unit, value_as_f64,
 };
 use crate::net::{CommandTarget, RESEND_AFTER, Received, Session, apply};
+use crate::values::{ack_result_name, interval_ms_for_hz, value_text};
 use ratatui::Frame;
 use ratatui::crossterm::event::{self, Event, KeyCode, KeyEvent, KeyEventKind, KeyModifiers};
 use ratatui::layout::{Constraint, Layout, Rect};
