@@ -71,6 +71,8 @@ pub struct FlightPlan<'a> {
     /// Waypoints for AUTO; without them AUTO holds altitude, heading and airspeed.
     pub mission: Option<Mission>,
     pub options: RunOptions<'a>,
+    /// The MAVLink endpoint (`--mavlink`); it needs `link` (see [`LinkPlan::network`]).
+    pub mavlink: Option<crate::mavlink::MavlinkPlan>,
 }
 
 /// How the flight talks to the ground.
@@ -85,6 +87,9 @@ pub struct LinkPlan {
     pub telemetry: Vec<std::net::SocketAddr>,
     pub vehicle_id: u16,
     pub sign_telemetry: bool,
+    /// `false`: no skyframe link on the network (`--no-link` with `--mavlink`): no socket,
+    /// no key file; the rings and the link thread carry MAVLink's traffic only.
+    pub network: bool,
 }
 
 /// The link at the end of the flight.
@@ -176,6 +181,8 @@ pub struct FlightReport {
     pub log_streams: Vec<StreamReport>,
     pub devices: Vec<DeviceReport>,
     pub link: Option<LinkReport>,
+    /// The MAVLink endpoint's counters (`--mavlink`).
+    pub mavlink: Option<crate::mavlink::ingress::CountersReport>,
 }
 
 /// The log streams of one flight, and their statuses for the report.
@@ -251,9 +258,24 @@ pub fn fly<P: Platform>(
     let ingress = Arc::new(IngressCounters::new());
     let log_health = Arc::new(LogHealthCell::new());
     let mut link = None;
+    // MAVLink: its key is read before anything flies (a bad file stops the run here).
+    let mavlink_key = match plan.mavlink.as_ref().and_then(|m| m.key.as_deref()) {
+        Some(path) => Some(crate::mavlink::load_key(path)?),
+        None => None,
+    };
+    let (mut mavlink_hook, mut mavlink_ends) = match &plan.mavlink {
+        Some(_) => {
+            let (hook, ends) = crate::mavlink::hook_pair();
+            (Some(hook), Some(ends))
+        }
+        None => (None, None),
+    };
+    let mut mavlink_join = None;
+    let mut mavlink_counters = None;
     if let Some(plan_link) = &plan.link {
         let (key_file, key) = match &plan_link.key {
             Some(path) => (path.clone(), crate::link::load_key(path)?),
+            None if !plan_link.network => (PathBuf::new(), crate::mavlink::memory_key()?),
             None => {
                 let (path, key) = crate::link::write_new_key(&flight_dir)?;
                 eprintln!(
@@ -269,26 +291,50 @@ pub fn fly<P: Platform>(
             vehicle_id: plan_link.vehicle_id,
             ingress: Arc::clone(&ingress),
         };
-        let spawned = crate::link::spawn_link(
-            plan_link.commands,
+        let spawned = crate::link::spawn_link_with(
+            plan_link.network.then_some(plan_link.commands),
             plan_link.telemetry.clone(),
             screen(),
             Arc::clone(&io_stop),
+            mavlink_hook.take(),
         );
         let spawned = match spawned {
             Err(e) if plan_link.commands_is_default => {
                 let any = std::net::SocketAddr::new(plan_link.commands.ip(), 0);
-                let spawned = crate::link::spawn_link(
-                    any,
+                // The failed try took MAVLink's hook with it: a fresh pair.
+                let hook = plan.mavlink.as_ref().map(|_| {
+                    let (hook, ends) = crate::mavlink::hook_pair();
+                    mavlink_ends = Some(ends);
+                    hook
+                });
+                let spawned = crate::link::spawn_link_with(
+                    Some(any),
                     plan_link.telemetry.clone(),
                     screen(),
                     Arc::clone(&io_stop),
+                    hook,
                 )?;
                 log::warn!("{e}: listening for commands on a free port instead");
                 spawned
             }
             other => other?,
         };
+        if let (Some(mplan), Some(ends)) = (&plan.mavlink, mavlink_ends.take()) {
+            mavlink_counters = Some(Arc::clone(&ends.counters));
+            mavlink_join = Some(crate::mavlink::bridge::spawn(
+                crate::mavlink::bridge::BridgeSetup {
+                    plan: mplan.clone(),
+                    signing_key: mavlink_key,
+                    link_key: key.clone(),
+                    run_id,
+                    vehicle_id: plan_link.vehicle_id,
+                    task_names: table.tasks.iter().map(|t| t.name.to_string()).collect(),
+                    mission: plan.mission.clone(),
+                    ends,
+                    io_stop: Arc::clone(&io_stop),
+                },
+            )?);
+        }
         link = Some((key_file, key, run_id, spawned, plan_link.clone()));
     }
 
@@ -610,6 +656,9 @@ pub fn fly<P: Platform>(
             devices.push(device_report(name, None, &stats(name)));
         }
     }
+    if let Some(join) = mavlink_join {
+        let _ = join.join();
+    }
     let link = link_io.map(|(key_file, run_id, join, io, commands_address)| {
         let _ = join.join();
         let counters = telemetry_task
@@ -655,6 +704,7 @@ pub fn fly<P: Platform>(
             .collect(),
         devices,
         link,
+        mavlink: mavlink_counters.map(|c| c.snapshot()),
     })
 }
 
@@ -767,6 +817,24 @@ pub fn render_flight(report: &FlightReport) -> String {
             d.framing_errors,
             d.overflows,
             d.stale_events,
+        );
+    }
+    if let Some(m) = &report.mavlink {
+        out += &format!(
+            "mavlink: {} datagrams in, {} accepted; refused: {} rate-limited, {} malformed, \
+             {} unknown, {} unsigned, {} bad signature, {} replayed, {} for another system; \
+             {} frames out ({} send errors)\n",
+            m.datagrams_in,
+            m.accepted,
+            m.rate_limited,
+            m.malformed,
+            m.unknown,
+            m.unsigned,
+            m.bad_signature,
+            m.replayed,
+            m.other_target,
+            m.frames_out,
+            m.send_errors,
         );
     }
     out += &format!("flight directory: {}\n", report.flight_dir.display());
