@@ -178,15 +178,15 @@ pub struct MavlinkArgs {
     /// A MAVLink 2 endpoint: udpout:HOST:PORT (send to a ground station that listens, e.g.
     /// QGroundControl on 14550; answer whoever talks back) or udpin:ADDR:PORT (listen).
     /// Repeatable. Works with or without the skyframe link.
-    #[arg(long = "mavlink", value_name = "ENDPOINT", value_parser = crate::mavlink::parse_endpoint)]
+    #[arg(id = "mavlink", long = "mavlink", value_name = "ENDPOINT", value_parser = crate::mavlink::parse_endpoint)]
     pub endpoints: Vec<crate::mavlink::Endpoint>,
     /// MAVLink system id, 1..=255 (default: the vehicle id). Component 1, the autopilot.
-    #[arg(long = "mavlink-sysid", value_name = "N", value_parser = clap::value_parser!(u8).range(1..=255))]
+    #[arg(id = "mavlink_sysid", long = "mavlink-sysid", value_name = "N", value_parser = clap::value_parser!(u8).range(1..=255))]
     pub system_id: Option<u8>,
     /// MAVLink 2 signing secret (32 bytes: 64 hex digits or raw, mode 600, as --key): then
     /// unsigned, badly signed and replayed messages that change anything are dropped and
     /// counted, and everything sent is signed.
-    #[arg(long = "mavlink-key", value_name = "FILE")]
+    #[arg(id = "mavlink_key", long = "mavlink-key", value_name = "FILE")]
     pub key: Option<PathBuf>,
 }
 

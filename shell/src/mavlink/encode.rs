@@ -7,7 +7,7 @@
 use super::mav::{
     ATTITUDE_DATA, BATTERY_STATUS_DATA, EXTENDED_SYS_STATE_DATA, GLOBAL_POSITION_INT_DATA,
     GPS_RAW_INT_DATA, GpsFixType, HEARTBEAT_DATA, MavAutopilot, MavBatteryFunction,
-    MavBatteryType, MavLandedState, MavModeFlag, MavState, MavSysStatusSensor, MavType,
+    MavBatteryFault, MavBatteryType, MavLandedState, MavModeFlag, MavState, MavSysStatusSensor, MavSysStatusSensorExtended, MavType,
     NAV_CONTROLLER_OUTPUT_DATA, RC_CHANNELS_DATA, SCALED_IMU_DATA, SERVO_OUTPUT_RAW_DATA,
     SYS_STATUS_DATA, VFR_HUD_DATA,
 };
@@ -188,6 +188,10 @@ pub fn sys_status(view: &VehicleView, received: u64, rejected: u64) -> SYS_STATU
         battery_remaining: -1,
         drop_rate_comm: drop_rate,
         errors_comm: u16::try_from(rejected).unwrap_or(u16::MAX),
+        // The crate's default for a bit set is its first flag, not none.
+        onboard_control_sensors_present_extended: MavSysStatusSensorExtended::empty(),
+        onboard_control_sensors_enabled_extended: MavSysStatusSensorExtended::empty(),
+        onboard_control_sensors_health_extended: MavSysStatusSensorExtended::empty(),
         ..SYS_STATUS_DATA::default()
     }
 }
@@ -300,6 +304,8 @@ pub fn battery_status(view: &VehicleView) -> Option<BATTERY_STATUS_DATA> {
         current_consumed: -1,
         energy_consumed: -1,
         battery_remaining: -1,
+        // The crate's default for a bit set is its first flag (deep discharge!), not none.
+        fault_bitmask: MavBatteryFault::empty(),
         ..BATTERY_STATUS_DATA::default()
     })
 }
