@@ -269,6 +269,8 @@ impl Bridge {
             }
             let mut busy = false;
             for s in 0..self.sockets.len() {
+                // One clock read per batch: under a flood the share check is the hot path.
+                let now = Instant::now();
                 for _ in 0..RECEIVE_BATCH {
                     let Some(socket) = self.sockets.get(s) else { break };
                     let Ok((n, from)) = socket.socket.recv_from(&mut buf) else {
@@ -276,7 +278,7 @@ impl Bridge {
                     };
                     busy = true;
                     self.counters.datagrams_in.fetch_add(1, Ordering::Relaxed);
-                    if !self.shares.take(from, Instant::now()) {
+                    if !self.shares.take(from, now) {
                         self.counters.rate_limited.fetch_add(1, Ordering::Relaxed);
                         continue;
                     }
