@@ -215,7 +215,12 @@ fn a_parked_vehicle_speaks_mavlink_to_pymavlink() {
     assert!((f(&pos["alt"]) * 1e-3 - home_alt).abs() < 8.0, "{pos}");
     let gps = last("GPS_RAW_INT");
     assert_eq!(gps["fix_type"], 3);
-    let off = metres(home_lat, home_lon, f(&gps["lat"]) * 1e-7, f(&gps["lon"]) * 1e-7);
+    let off = metres(
+        home_lat,
+        home_lon,
+        f(&gps["lat"]) * 1e-7,
+        f(&gps["lon"]) * 1e-7,
+    );
     assert!(off < 10.0, "GPS_RAW_INT {off:.1} m from home");
     let home = &seen["home"];
     assert_eq!(seen["home_ack"], 0);
@@ -225,7 +230,10 @@ fn a_parked_vehicle_speaks_mavlink_to_pymavlink() {
         f(&home["latitude"]) * 1e-7,
         f(&home["longitude"]) * 1e-7,
     );
-    assert!(off < 10.0, "HOME_POSITION {off:.1} m from the scenario's home");
+    assert!(
+        off < 10.0,
+        "HOME_POSITION {off:.1} m from the scenario's home"
+    );
     // Specific force of a parked airplane: −1 g on body z (down).
     let imu = last("SCALED_IMU");
     assert!((f(&imu["zacc"]) + 1000.0).abs() < 50.0, "{imu}");
@@ -324,7 +332,10 @@ fn a_parked_vehicle_speaks_mavlink_to_pymavlink() {
     assert_eq!(f(&loiter["param3"]) as f32, file.loiter_radius_m);
     assert_eq!(seen["upload_same"], 0, "MAV_MISSION_ACCEPTED");
     assert_eq!(seen["upload_takeoff"], 3, "MAV_MISSION_UNSUPPORTED");
-    assert_eq!(seen["upload_local_frame"], 2, "MAV_MISSION_UNSUPPORTED_FRAME");
+    assert_eq!(
+        seen["upload_local_frame"], 2,
+        "MAV_MISSION_UNSUPPORTED_FRAME"
+    );
 
     // Commands: every one answered.
     assert_eq!(seen["unsupported_command"], 3, "MAV_RESULT_UNSUPPORTED");
@@ -382,9 +393,15 @@ fn with_speedup_the_auto_mission_reports_every_waypoint_reached() {
         .iter()
         .map(|s| s.as_u64().expect("seq"))
         .collect();
-    assert_eq!(reached, waypoint_seqs, "MISSION_ITEM_REACHED for each waypoint, in order");
+    assert_eq!(
+        reached, waypoint_seqs,
+        "MISSION_ITEM_REACHED for each waypoint, in order"
+    );
     let modes = seen["modes"].as_array().expect("modes");
-    assert!(modes.contains(&serde_json::json!(2)), "AUTO seen: {modes:?}");
+    assert!(
+        modes.contains(&serde_json::json!(10)),
+        "AUTO (10) seen: {modes:?}"
+    );
     // The log agrees: the control task's active waypoint went through all of them in AUTO.
     let csv = flight_csv(&report, &dir);
     let mode = column(&csv.join("control.1.csv"), "mode");
@@ -431,7 +448,11 @@ fn with_a_key_only_signed_sets_change_anything() {
     let seen = ground(port, "signed", Some(key_hex));
     let report = stop_sim(sim);
     assert_eq!(f(&seen["before"]) as f32, 1.2);
-    assert_eq!(f(&seen["after_unsigned"]) as f32, 1.2, "unsigned set ignored");
+    assert_eq!(
+        f(&seen["after_unsigned"]) as f32,
+        1.2,
+        "unsigned set ignored"
+    );
     assert_eq!(f(&seen["signed_set"]) as f32, 0.65);
     assert_eq!(f(&seen["after_signed"]) as f32, 0.65, "signed set applied");
     assert_eq!(seen["heartbeat_signed"], true, "telemetry is signed");
@@ -439,7 +460,10 @@ fn with_a_key_only_signed_sets_change_anything() {
     let csv = flight_csv(&report, &dir);
     let gains = column(&csv.join("control.2.csv"), "roll_kp");
     assert_eq!(gains.last(), Some(&0.65));
-    assert!(!gains.contains(&0.6), "the unsigned value never reached the vehicle");
+    assert!(
+        !gains.contains(&0.6),
+        "the unsigned value never reached the vehicle"
+    );
 }
 
 #[test]
@@ -608,7 +632,9 @@ fn a_flood_of_forged_frames_does_not_lock_out_the_key_holder() {
     let report = stop_sim(sim);
     let m = &report["mavlink"];
     let rate = sent as f64 / took.as_secs_f64();
-    eprintln!("mavlink flood: {sent} forged frames at {rate:.0}/s; genuine answered {answered}/30; {m}");
+    eprintln!(
+        "mavlink flood: {sent} forged frames at {rate:.0}/s; genuine answered {answered}/30; {m}"
+    );
     assert_eq!(answered, 30, "{m}");
     assert!(rate > 100_000.0, "only {rate:.0} frames/s");
     // Every datagram that reached the endpoint (the kernel drops the rest when the socket's

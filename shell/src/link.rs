@@ -216,7 +216,10 @@ fn link_thread(
         let stopping = stop.load(Ordering::Acquire);
         // MAVLink's commands: made and signed in this process, queued as they are.
         while let Some(datagram) = hook.and_then(|h| h.commands.try_recv().ok()) {
-            match (u16::try_from(datagram.len()), rx.write_chunk_uninit(2 + datagram.len())) {
+            match (
+                u16::try_from(datagram.len()),
+                rx.write_chunk_uninit(2 + datagram.len()),
+            ) {
                 (Ok(len), Ok(chunk)) => {
                     chunk.fill_from_iter(len.to_le_bytes().into_iter().chain(datagram));
                 }

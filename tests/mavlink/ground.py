@@ -175,7 +175,7 @@ if PHASE == "parked":
         out["upload_local_frame"] = mission_upload(local)
     out["unsupported_command"] = command(mav.MAV_CMD_DO_SET_SERVO, 1, 1500)
     out["arm"] = command(mav.MAV_CMD_COMPONENT_ARM_DISARM, 1)
-    out["set_mode_stabilise"] = command(mav.MAV_CMD_DO_SET_MODE, mav.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 1)
+    out["set_mode_stabilise"] = command(mav.MAV_CMD_DO_SET_MODE, mav.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 2)
     out["set_mode_nonsense"] = command(mav.MAV_CMD_DO_SET_MODE, mav.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED, 7)
     out["interval_ack"] = command(mav.MAV_CMD_SET_MESSAGE_INTERVAL, 30, 500000)
     seen, _, _ = collect(4)

@@ -12,9 +12,8 @@ use super::ingress::{self, Accepted, Counters, Verifier};
 use super::mav::{
     AUTOPILOT_VERSION_DATA, COMMAND_ACK_DATA, COMMAND_LONG_DATA, HOME_POSITION_DATA,
     MISSION_ACK_DATA, MISSION_COUNT_DATA, MISSION_CURRENT_DATA, MISSION_ITEM_INT_DATA,
-    MISSION_REQUEST_INT_DATA, MavCmd, MavMessage, MavMissionResult,
-    MavMissionType, MavModeFlag, MavProtocolCapability, MavResult, MavSeverity, MissionState,
-    PARAM_VALUE_DATA, STATUSTEXT_DATA,
+    MISSION_REQUEST_INT_DATA, MavCmd, MavMessage, MavMissionResult, MavMissionType, MavModeFlag,
+    MavProtocolCapability, MavResult, MavSeverity, MissionState, PARAM_VALUE_DATA, STATUSTEXT_DATA,
 };
 use super::mission::{Items, items_from_mission, mission_from_items, same_mission};
 use super::params::{ParamCache, decode_value, encode_value, id_from_bytes, param_type};
@@ -98,13 +97,8 @@ struct Socket {
 }
 
 enum Pending {
-    ParamSet {
-        index: usize,
-    },
-    Command {
-        command: MavCmd,
-        to: (u8, u8),
-    },
+    ParamSet { index: usize },
+    Command { command: MavCmd, to: (u8, u8) },
 }
 
 enum Upload {
@@ -272,7 +266,9 @@ impl Bridge {
                 // One clock read per batch: under a flood the share check is the hot path.
                 let now = Instant::now();
                 for _ in 0..RECEIVE_BATCH {
-                    let Some(socket) = self.sockets.get(s) else { break };
+                    let Some(socket) = self.sockets.get(s) else {
+                        break;
+                    };
                     let Ok((n, from)) = socket.socket.recv_from(&mut buf) else {
                         break;
                     };
@@ -553,8 +549,7 @@ impl Bridge {
             1 => MavMessage::SYS_STATUS(encode::sys_status(
                 v,
                 self.counters.datagrams_in.load(Ordering::Relaxed),
-                self.counters.rejected()
-                    + self.counters.rate_limited.load(Ordering::Relaxed),
+                self.counters.rejected() + self.counters.rate_limited.load(Ordering::Relaxed),
             )),
             245 => MavMessage::EXTENDED_SYS_STATE(encode::extended_sys_state(v)),
             30 => MavMessage::ATTITUDE(encode::attitude(v)?),
@@ -739,7 +734,9 @@ impl Bridge {
                     self.send_param(i);
                 }
             }
-            MavMessage::PARAM_SET(s) => self.param_set(&id_from_bytes(&s.param_id[..]), s.param_value),
+            MavMessage::PARAM_SET(s) => {
+                self.param_set(&id_from_bytes(&s.param_id[..]), s.param_value)
+            }
             MavMessage::COMMAND_LONG(c) => self.command(&c, from),
             MavMessage::COMMAND_INT(c) => {
                 let long = COMMAND_LONG_DATA {
@@ -773,7 +770,10 @@ impl Bridge {
             MavMessage::MISSION_ITEM_INT(i) => self.upload_item(i, from),
             MavMessage::MISSION_ITEM(_) => {
                 // Float positions lose ~1 m at these latitudes: only MISSION_ITEM_INT.
-                self.send(&mission_ack(MavMissionResult::MAV_MISSION_UNSUPPORTED, from));
+                self.send(&mission_ack(
+                    MavMissionResult::MAV_MISSION_UNSUPPORTED,
+                    from,
+                ));
             }
             MavMessage::MISSION_CLEAR_ALL(_) => {
                 self.send(&statustext(
@@ -831,9 +831,7 @@ impl Bridge {
         match c.command {
             MavCmd::MAV_CMD_DO_SET_MODE => {
                 let custom = MavModeFlag::MAV_MODE_FLAG_CUSTOM_MODE_ENABLED.bits();
-                let mode = (c.param2.fract() == 0.0 && (0.0..=255.0).contains(&c.param2))
-                    .then(|| FlightMode::from_u8(c.param2 as u8))
-                    .flatten();
+                let mode = encode::flight_mode(c.param2);
                 match mode {
                     Some(mode) if (c.param1 as u32 as u8) & custom != 0 => {
                         self.vehicle_command(Command::RequestMode { mode }, c.command, from);
@@ -968,7 +966,7 @@ impl Bridge {
 
     fn mission_item(&mut self, seq: u16, kind: MavMissionType, to: (u8, u8)) {
         let item = (kind == MavMissionType::MAV_MISSION_TYPE_MISSION)
-            .then(|| self.items.as_ref())
+            .then_some(self.items.as_ref())
             .flatten()
             .and_then(|i| i.items.get(usize::from(seq)))
             .cloned();
@@ -994,7 +992,10 @@ impl Bridge {
 
     fn upload_start(&mut self, c: &MISSION_COUNT_DATA, from: (u8, u8)) {
         if c.mission_type != MavMissionType::MAV_MISSION_TYPE_MISSION {
-            self.send(&mission_ack(MavMissionResult::MAV_MISSION_UNSUPPORTED, from));
+            self.send(&mission_ack(
+                MavMissionResult::MAV_MISSION_UNSUPPORTED,
+                from,
+            ));
             return;
         }
         if c.count == 0 {

@@ -6,10 +6,10 @@
 
 use super::mav::{
     ATTITUDE_DATA, BATTERY_STATUS_DATA, EXTENDED_SYS_STATE_DATA, GLOBAL_POSITION_INT_DATA,
-    GPS_RAW_INT_DATA, GpsFixType, HEARTBEAT_DATA, MavAutopilot, MavBatteryFunction,
-    MavBatteryFault, MavBatteryType, MavLandedState, MavModeFlag, MavState, MavSysStatusSensor, MavSysStatusSensorExtended, MavType,
-    NAV_CONTROLLER_OUTPUT_DATA, RC_CHANNELS_DATA, SCALED_IMU_DATA, SERVO_OUTPUT_RAW_DATA,
-    SYS_STATUS_DATA, VFR_HUD_DATA,
+    GPS_RAW_INT_DATA, GpsFixType, HEARTBEAT_DATA, MavAutopilot, MavBatteryFault,
+    MavBatteryFunction, MavBatteryType, MavLandedState, MavModeFlag, MavState, MavSysStatusSensor,
+    MavSysStatusSensorExtended, MavType, NAV_CONTROLLER_OUTPUT_DATA, RC_CHANNELS_DATA,
+    SCALED_IMU_DATA, SERVO_OUTPUT_RAW_DATA, SYS_STATUS_DATA, VFR_HUD_DATA,
 };
 use super::view::VehicleView;
 use skyframe_core::estimation::geo::{GeoPoint, LocalFrame};
@@ -20,12 +20,16 @@ const G_M_S2: f64 = 9.80665;
 
 /// Degrees as MAVLink's degE7 integer (saturating: only an absurd input reaches the limits).
 pub fn deg_e7(deg: f64) -> i32 {
-    (deg * 1e7).round().clamp(f64::from(i32::MIN), f64::from(i32::MAX)) as i32
+    (deg * 1e7)
+        .round()
+        .clamp(f64::from(i32::MIN), f64::from(i32::MAX)) as i32
 }
 
 /// Metres as millimetres.
 pub fn mm(m: f64) -> i32 {
-    (m * 1e3).round().clamp(f64::from(i32::MIN), f64::from(i32::MAX)) as i32
+    (m * 1e3)
+        .round()
+        .clamp(f64::from(i32::MIN), f64::from(i32::MAX)) as i32
 }
 
 /// m/s as cm/s in an i16.
@@ -60,9 +64,27 @@ pub fn pulse_us(cmd: f64, unipolar: bool) -> u16 {
     us.round() as u16
 }
 
-/// skyframe's mode numbers are MAVLink's `custom_mode` (docs/mavlink.md).
+/// MAVLink's `custom_mode` of each skyframe mode: ArduPlane's numbers for the same modes
+/// (MANUAL 0, STABILIZE 2, AUTO 10), because the field's tools (pymavlink, MAVProxy) name a
+/// fixed wing's custom modes by ArduPlane's table: with skyframe's own 0/1/2 they would show
+/// stabilise as CIRCLE and auto as STABILIZE. docs/mavlink.md lists them.
+pub const CUSTOM_MODES: [(FlightMode, u32); 3] = [
+    (FlightMode::Manual, 0),
+    (FlightMode::Stabilise, 2),
+    (FlightMode::Auto, 10),
+];
+
 pub fn custom_mode(mode: Option<FlightMode>) -> u32 {
-    mode.map_or(0, |m| u32::from(m as u8))
+    mode.and_then(|m| CUSTOM_MODES.iter().find(|(f, _)| *f == m))
+        .map_or(0, |(_, n)| *n)
+}
+
+/// The skyframe mode of a `custom_mode` (DO_SET_MODE's param2, SET_MODE).
+pub fn flight_mode(custom: f32) -> Option<FlightMode> {
+    CUSTOM_MODES
+        .iter()
+        .find(|(_, n)| *n as f32 == custom)
+        .map(|(f, _)| *f)
 }
 
 /// Where the airplane is: home plus the estimator's NED position.
@@ -160,7 +182,9 @@ pub fn sys_status(view: &VehicleView, received: u64, rejected: u64) -> SYS_STATU
         ),
     ];
     let mut present = MavSysStatusSensor::empty();
-    let mut health = MavSysStatusSensor::empty();
+    // No geofence, so never a breach: the health bit says so (as ArduPilot sets it), or
+    // MAVProxy reports "fence breach".
+    let mut health = MavSysStatusSensor::MAV_SYS_STATUS_GEOFENCE;
     for (task, bits) in sensors {
         if view.status(task).is_none() && view.updates(task) == 0 {
             continue;
@@ -174,11 +198,11 @@ pub fn sys_status(view: &VehicleView, received: u64, rejected: u64) -> SYS_STATU
     let voltage = view
         .get("servo", "batt_avionics_v")
         .map_or(u16::MAX, |v| (v * 1e3).round().clamp(0.0, 65534.0) as u16);
-    let drop_rate = if received == 0 {
-        0
-    } else {
-        (rejected.saturating_mul(10_000) / received).min(10_000) as u16
-    };
+    // Refused per 10 000 received (c%), as MAVLink counts it; nothing received: none.
+    let drop_rate = rejected
+        .saturating_mul(10_000)
+        .checked_div(received)
+        .map_or(0, |r| r.min(10_000) as u16);
     SYS_STATUS_DATA {
         onboard_control_sensors_present: present,
         onboard_control_sensors_enabled: present,
@@ -256,19 +280,37 @@ pub fn gps_raw_int(view: &VehicleView) -> Option<GPS_RAW_INT_DATA> {
     };
     Some(GPS_RAW_INT_DATA {
         time_usec: u64::from(view.time_boot_ms()) * 1000,
-        lat: if valid { deg_e7(view.get("gps", "lat_deg")?) } else { 0 },
-        lon: if valid { deg_e7(view.get("gps", "lon_deg")?) } else { 0 },
-        alt: if valid { mm(view.get("gps", "alt_m")?) } else { 0 },
+        lat: if valid {
+            deg_e7(view.get("gps", "lat_deg")?)
+        } else {
+            0
+        },
+        lon: if valid {
+            deg_e7(view.get("gps", "lon_deg")?)
+        } else {
+            0
+        },
+        alt: if valid {
+            mm(view.get("gps", "alt_m")?)
+        } else {
+            0
+        },
         eph: dop("hdop"),
         epv: dop("vdop"),
         vel: (vn.hypot(ve) * 100.0).round().min(65534.0) as u16,
-        cog: if valid { cdeg_heading(ve.atan2(vn)) } else { u16::MAX },
+        cog: if valid {
+            cdeg_heading(ve.atan2(vn))
+        } else {
+            u16::MAX
+        },
         fix_type: if valid {
             GpsFixType::GPS_FIX_TYPE_3D_FIX
         } else {
             GpsFixType::GPS_FIX_TYPE_NO_FIX
         },
-        satellites_visible: view.get("gps", "satellites").map_or(u8::MAX, |s| s.clamp(0.0, 254.0) as u8),
+        satellites_visible: view
+            .get("gps", "satellites")
+            .map_or(u8::MAX, |s| s.clamp(0.0, 254.0) as u8),
         h_acc,
         v_acc: sd("sd_d_m").map_or(0, |d| (d * 1e3).round().min(f64::from(u32::MAX - 1)) as u32),
         ..GPS_RAW_INT_DATA::default()
@@ -285,8 +327,12 @@ pub fn vfr_hud(view: &VehicleView, home: &LocalFrame) -> Option<VFR_HUD_DATA> {
         alt: p.altitude_m as f32,
         climb: -view.get("estimator", "vd_m_s")? as f32,
         heading: deg_heading(view.get("estimator", "yaw_rad")?),
-        throttle: (view.get("control", "throttle").unwrap_or(0.0).clamp(0.0, 1.0) * 100.0).round()
-            as u16,
+        throttle: (view
+            .get("control", "throttle")
+            .unwrap_or(0.0)
+            .clamp(0.0, 1.0)
+            * 100.0)
+            .round() as u16,
     })
 }
 
@@ -319,7 +365,8 @@ pub fn servo_output_raw(view: &VehicleView) -> Option<SERVO_OUTPUT_RAW_DATA> {
         if auto {
             view.get("servo", cmd).map_or(0, |c| pulse_us(c, unipolar))
         } else {
-            view.get("servo", ch).map_or(0, |us| us.clamp(0.0, 65535.0) as u16)
+            view.get("servo", ch)
+                .map_or(0, |us| us.clamp(0.0, 65535.0) as u16)
         }
     };
     Some(SERVO_OUTPUT_RAW_DATA {
@@ -427,14 +474,19 @@ mod tests {
         assert_eq!(cm_s(1e9), i16::MAX);
         assert_eq!(cdeg_heading(-std::f64::consts::FRAC_PI_2), 27_000);
         assert_eq!(cdeg_heading(std::f64::consts::TAU), 0);
-        assert_eq!(cdeg_heading(0.999_99_f64.to_radians() * 360.0), 35_999);
+        assert_eq!(cdeg_heading(359.994_f64.to_radians()), 35_999);
+        assert_eq!(cdeg_heading(359.996_f64.to_radians()), 0, "rounds to 360°: 0");
         assert_eq!(deg_heading(-0.1_f64.to_radians()), 0);
         assert_eq!(deg_heading(3.0_f64.to_radians()), 3);
         assert_eq!(milli_g(-9.80665), -1000);
         assert_eq!(pulse_us(-1.0, false), 1000);
         assert_eq!(pulse_us(0.0, false), 1500);
         assert_eq!(pulse_us(0.25, true), 1250);
-        assert_eq!(custom_mode(Some(FlightMode::Auto)), 2);
-        assert_eq!(custom_mode(Some(FlightMode::Stabilise)), 1);
+        assert_eq!(custom_mode(Some(FlightMode::Auto)), 10);
+        assert_eq!(custom_mode(Some(FlightMode::Stabilise)), 2);
+        assert_eq!(custom_mode(Some(FlightMode::Manual)), 0);
+        assert_eq!(flight_mode(10.0), Some(FlightMode::Auto));
+        assert_eq!(flight_mode(1.0), None);
+        assert_eq!(flight_mode(f32::NAN), None);
     }
 }

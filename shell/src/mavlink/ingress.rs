@@ -170,7 +170,11 @@ impl Verifier {
             return Signature::Replayed;
         }
         if !self.streams.contains_key(&stream) && self.streams.len() >= STREAMS_KEPT {
-            let oldest = self.streams.iter().min_by_key(|(_, t)| **t).map(|(s, _)| *s);
+            let oldest = self
+                .streams
+                .iter()
+                .min_by_key(|(_, t)| **t)
+                .map(|(s, _)| *s);
             if let Some(oldest) = oldest {
                 self.streams.remove(&oldest);
             }
@@ -266,7 +270,7 @@ pub fn frame(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mavlink::mav::{PARAM_SET_DATA, PARAM_REQUEST_LIST_DATA};
+    use crate::mavlink::mav::{PARAM_REQUEST_LIST_DATA, PARAM_SET_DATA};
 
     const KEY: [u8; 32] = [7; 32];
 

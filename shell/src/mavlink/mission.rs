@@ -76,7 +76,11 @@ pub fn items_from_mission(mission: &Mission, home: &LocalFrame) -> Items {
             items.push(s);
             speed = Some(w.airspeed_mps);
         }
-        let p = home.to_geodetic(&Vector3::new(f64::from(w.north_m), f64::from(w.east_m), 0.0));
+        let p = home.to_geodetic(&Vector3::new(
+            f64::from(w.north_m),
+            f64::from(w.east_m),
+            0.0,
+        ));
         let mut n = item(
             items.len(),
             MavCmd::MAV_CMD_NAV_WAYPOINT,
@@ -136,15 +140,26 @@ fn position(i: &MISSION_ITEM_INT_DATA, home: &LocalFrame) -> Result<(f32, f32, f
         MavFrame::MAV_FRAME_GLOBAL_INT | MavFrame::MAV_FRAME_GLOBAL => {
             i.z - home.home().altitude_m as f32
         }
-        _ => return Err(refuse(MavMissionResult::MAV_MISSION_UNSUPPORTED_FRAME, i.seq)),
+        _ => {
+            return Err(refuse(
+                MavMissionResult::MAV_MISSION_UNSUPPORTED_FRAME,
+                i.seq,
+            ));
+        }
     };
     let lat = f64::from(i.x) * 1e-7;
     let lon = f64::from(i.y) * 1e-7;
     if !(-90.0..=90.0).contains(&lat) {
-        return Err(refuse(MavMissionResult::MAV_MISSION_INVALID_PARAM5_X, i.seq));
+        return Err(refuse(
+            MavMissionResult::MAV_MISSION_INVALID_PARAM5_X,
+            i.seq,
+        ));
     }
     if !(-180.0..=180.0).contains(&lon) {
-        return Err(refuse(MavMissionResult::MAV_MISSION_INVALID_PARAM6_Y, i.seq));
+        return Err(refuse(
+            MavMissionResult::MAV_MISSION_INVALID_PARAM6_Y,
+            i.seq,
+        ));
     }
     if !above_home.is_finite() || !ALTITUDE_M.contains(&above_home) {
         return Err(refuse(MavMissionResult::MAV_MISSION_INVALID_PARAM7, i.seq));
@@ -292,7 +307,11 @@ mod tests {
         let w0 = &items.items[1];
         assert_eq!(w0.frame, MavFrame::MAV_FRAME_GLOBAL_RELATIVE_ALT);
         assert_eq!(w0.y, 85_455_940);
-        assert!((f64::from(w0.x - 473_977_420) - 62_946.0).abs() < 30.0, "{}", w0.x);
+        assert!(
+            (f64::from(w0.x - 473_977_420) - 62_946.0).abs() < 30.0,
+            "{}",
+            w0.x
+        );
         assert_eq!(w0.z, 100.0);
         assert_eq!(w0.param2, 40.0);
         let loiter = items.items.last().expect("loiter");

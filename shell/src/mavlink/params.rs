@@ -191,7 +191,13 @@ pub fn id_from_bytes(bytes: &[u8]) -> String {
     bytes
         .iter()
         .take_while(|b| **b != 0)
-        .map(|b| if b.is_ascii() { char::from(*b) } else { '\u{FFFD}' })
+        .map(|b| {
+            if b.is_ascii() {
+                char::from(*b)
+            } else {
+                '\u{FFFD}'
+            }
+        })
         .collect()
 }
 
@@ -207,7 +213,12 @@ mod tests {
         define_params(&mut table, &ControlSettings::default()).expect("defined");
         let mut ids = Vec::new();
         for i in 0..table.len() {
-            let name = table.by_index(i).expect("param").name().as_str().to_string();
+            let name = table
+                .by_index(i)
+                .expect("param")
+                .name()
+                .as_str()
+                .to_string();
             let id = mavlink_id(&name);
             assert!(id.len() <= ID_LEN, "{name} -> {id}");
             assert!(!ids.contains(&id), "{name} -> {id} twice");

@@ -83,8 +83,7 @@ impl VehicleView {
                 self.columns.insert((f.task_index, f.format_index), names);
             }
             Telemetry::TaskData(d) => {
-                let time_ns =
-                    i128::from(d.time.sec) * 1_000_000_000 + i128::from(d.time.nsec);
+                let time_ns = i128::from(d.time.sec) * 1_000_000_000 + i128::from(d.time.nsec);
                 self.first_time_ns.get_or_insert(time_ns);
                 self.latest_time_ns = self.latest_time_ns.max(time_ns);
                 let key = (d.task_index, d.format_index);
@@ -218,8 +217,7 @@ mod tests {
             task_index: 1,
             format_index: 1,
             time: Time { sec: 10, nsec: 5 },
-            values: heapless::Vec::from_slice(&[Value::F32(0.5), Value::F32(-0.25)])
-                .expect("fits"),
+            values: heapless::Vec::from_slice(&[Value::F32(0.5), Value::F32(-0.25)]).expect("fits"),
         };
         v.take(Telemetry::TaskData(data.clone()));
         assert_eq!(v.get("estimator", "roll_rad"), None, "no column names yet");

@@ -83,7 +83,11 @@ fn hex_key(text: &[u8]) -> Option<[u8; 32]> {
     if text.len() != 64 {
         return None;
     }
-    let digit = |c: u8| char::from(c).to_digit(16).and_then(|d| u8::try_from(d).ok());
+    let digit = |c: u8| {
+        char::from(c)
+            .to_digit(16)
+            .and_then(|d| u8::try_from(d).ok())
+    };
     let mut key = [0u8; 32];
     for (byte, pair) in key.iter_mut().zip(text.chunks_exact(2)) {
         *byte = digit(*pair.first()?)? << 4 | digit(*pair.get(1)?)?;
