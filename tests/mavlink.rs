@@ -657,3 +657,115 @@ fn a_flood_of_forged_frames_does_not_lock_out_the_key_holder() {
     // The genuine sets (and any resends) are all that was accepted.
     assert!((30.0..=90.0).contains(&f(&m["accepted"])), "{m}");
 }
+
+#[test]
+fn two_simulators_appear_as_two_vehicles_in_one_ground_station() {
+    let dir = scratch("mavlink-two");
+    let scenario = dir.join("parked.toml");
+    std::fs::write(&scenario, PARKED).expect("scenario");
+    let port = free_port();
+    let endpoint = format!("udpout:127.0.0.1:{port}");
+    let sims: Vec<Child> = ["1", "2"]
+        .iter()
+        .map(|sysid| {
+            start_sim(
+                &dir.join(sysid),
+                &[
+                    "--speedup",
+                    "1",
+                    "--no-link",
+                    "--scenario",
+                    scenario.to_str().expect("path"),
+                    "--mavlink",
+                    &endpoint,
+                    "--mavlink-sysid",
+                    sysid,
+                ],
+            )
+        })
+        .collect();
+    let seen = ground(port, "listen", None);
+    for sim in sims {
+        stop_sim(sim);
+    }
+    let by_system = &seen["heartbeats_by_system"];
+    for sysid in ["1", "2"] {
+        let n = f(&by_system[sysid]);
+        assert!(
+            (8.0..=12.0).contains(&n),
+            "system {sysid}: {n} heartbeats in 10 s"
+        );
+    }
+    assert_eq!(seen["components"], serde_json::json!([1]), "the autopilot");
+}
+
+#[test]
+fn bad_mavlink_options_are_refused_in_one_line_before_the_run() {
+    let dir = scratch("mavlink-options");
+    let missing = dir.join("no-such.key");
+    let readable = dir.join("readable.key");
+    std::fs::write(&readable, [7u8; 32]).expect("key");
+    use std::os::unix::fs::PermissionsExt;
+    std::fs::set_permissions(&readable, std::fs::Permissions::from_mode(0o644)).expect("chmod");
+    let log_dir = dir.join("flights");
+    let cases: Vec<(Vec<&str>, &str)> = vec![
+        (vec!["--mavlink", "tcp:127.0.0.1:5760"], "unknown kind"),
+        (vec!["--mavlink", "udpout:127.0.0.1:0"], "port other than 0"),
+        (vec!["--mavlink", "udpin:nowhere"], "nowhere"),
+        (
+            vec!["--mavlink", "udpin:127.0.0.1:0", "--mavlink-sysid", "0"],
+            "mavlink-sysid",
+        ),
+        (
+            vec!["--mavlink", "udpin:127.0.0.1:0", "--mavlink-sysid", "256"],
+            "mavlink-sysid",
+        ),
+        (vec!["--mavlink-sysid", "3"], "need --mavlink"),
+        (
+            vec!["--mavlink", "udpin:127.0.0.1:0", "--vehicle-id", "300"],
+            "--mavlink-sysid N is needed",
+        ),
+        (
+            vec![
+                "--mavlink",
+                "udpin:127.0.0.1:0",
+                "--mavlink-key",
+                missing.to_str().expect("p"),
+            ],
+            "no-such.key",
+        ),
+        (
+            vec![
+                "--mavlink",
+                "udpin:127.0.0.1:0",
+                "--mavlink-key",
+                readable.to_str().expect("p"),
+            ],
+            "readable by group or others",
+        ),
+        (vec!["--speedup", "0.5"], "speedup"),
+        (vec!["--speedup", "5000"], "speedup"),
+        (vec!["--speedup", "lots"], "speedup"),
+        (vec!["--speedup", "2", "--fast"], "cannot be used with"),
+    ];
+    for (args, says) in cases {
+        let out = skyframe()
+            .arg("sim")
+            .args(&args)
+            .arg("--log-dir")
+            .arg(&log_dir)
+            .output()
+            .expect("runs");
+        let text = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {text}");
+        let first = text.lines().next().unwrap_or_default();
+        assert!(
+            first.contains(says),
+            "{args:?}: the first line says why: {text}"
+        );
+        assert!(
+            !log_dir.exists(),
+            "{args:?}: refused before any flight directory"
+        );
+    }
+}

@@ -213,7 +213,12 @@ impl MavlinkArgs {
                     )
                 })?,
         };
-        if self.key.is_none() {
+        // Read now: a bad key file is refused before anything flies.
+        let key = match &self.key {
+            Some(path) => Some(crate::mavlink::Secret(crate::mavlink::load_key(path)?)),
+            None => None,
+        };
+        if key.is_none() {
             eprintln!(
                 "WARNING: the MAVLink endpoint accepts commands, parameter changes and modes from \
                  anyone who can reach it (no --mavlink-key)"
@@ -222,7 +227,7 @@ impl MavlinkArgs {
         Ok(Some(crate::mavlink::MavlinkPlan {
             endpoints: self.endpoints.clone(),
             system_id,
-            key: self.key.clone(),
+            key,
             stop: Arc::clone(stop),
         }))
     }

@@ -258,11 +258,7 @@ pub fn fly<P: Platform>(
     let ingress = Arc::new(IngressCounters::new());
     let log_health = Arc::new(LogHealthCell::new());
     let mut link = None;
-    // MAVLink: its key is read before anything flies (a bad file stops the run here).
-    let mavlink_key = match plan.mavlink.as_ref().and_then(|m| m.key.as_deref()) {
-        Some(path) => Some(crate::mavlink::load_key(path)?),
-        None => None,
-    };
+    let mavlink_key = plan.mavlink.as_ref().and_then(|m| m.key).map(|k| k.0);
     let (mut mavlink_hook, mut mavlink_ends) = match &plan.mavlink {
         Some(_) => {
             let (hook, ends) = crate::mavlink::hook_pair();

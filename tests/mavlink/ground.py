@@ -17,7 +17,9 @@ PHASE = sys.argv[2]
 KEY = bytes.fromhex(sys.argv[3]) if PHASE == "signed" and len(sys.argv) > 3 else None
 
 mav = mavutil.mavlink
-m = mavutil.mavlink_connection(f"udpout:127.0.0.1:{PORT}", source_system=255, source_component=190)
+# "listen": the ground station listens (as QGC on 14550) and the vehicles send to it.
+MODE = "udpin" if PHASE == "listen" else "udpout"
+m = mavutil.mavlink_connection(f"{MODE}:127.0.0.1:{PORT}", source_system=255, source_component=190)
 
 
 def hello():
@@ -145,6 +147,16 @@ def collect(seconds):
         entry["last"] = as_dict(msg)
     return seen, heartbeats, texts
 
+
+if PHASE == "listen":
+    systems = {}
+    end = time.time() + 10
+    while time.time() < end:
+        msg = m.recv_match(type="HEARTBEAT", blocking=True, timeout=0.5)
+        if msg is not None:
+            systems.setdefault(str(msg.get_srcSystem()), []).append(msg.get_srcComponent())
+    print(json.dumps({"contact": bool(systems), "heartbeats_by_system": {k: len(v) for k, v in systems.items()}, "components": sorted({c for v in systems.values() for c in v})}))
+    sys.exit(0)
 
 out = {"contact": first_contact()}
 if PHASE == "parked":

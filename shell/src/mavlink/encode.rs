@@ -475,7 +475,11 @@ mod tests {
         assert_eq!(cdeg_heading(-std::f64::consts::FRAC_PI_2), 27_000);
         assert_eq!(cdeg_heading(std::f64::consts::TAU), 0);
         assert_eq!(cdeg_heading(359.994_f64.to_radians()), 35_999);
-        assert_eq!(cdeg_heading(359.996_f64.to_radians()), 0, "rounds to 360°: 0");
+        assert_eq!(
+            cdeg_heading(359.996_f64.to_radians()),
+            0,
+            "rounds to 360°: 0"
+        );
         assert_eq!(deg_heading(-0.1_f64.to_radians()), 0);
         assert_eq!(deg_heading(3.0_f64.to_radians()), 3);
         assert_eq!(milli_g(-9.80665), -1000);

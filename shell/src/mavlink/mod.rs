@@ -23,7 +23,16 @@ pub mod view;
 pub use mavlink::dialects::common as mav;
 
 use std::net::{SocketAddr, ToSocketAddrs};
-use std::path::PathBuf;
+
+/// A MAVLink signing secret; its `Debug` does not show it.
+#[derive(Clone, Copy)]
+pub struct Secret(pub [u8; 32]);
+
+impl std::fmt::Debug for Secret {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("Secret(..)")
+    }
+}
 
 /// The skyframe link sender id the MAVLink endpoint's commands carry (ground stations pick
 /// from 1..=255; this one is documented so that nobody else uses it).
@@ -65,8 +74,8 @@ pub struct MavlinkPlan {
     pub endpoints: Vec<Endpoint>,
     /// MAVLink system id (component 1, the autopilot).
     pub system_id: u8,
-    /// The signing secret's file (`--mavlink-key`).
-    pub key: Option<PathBuf>,
+    /// The signing secret (`--mavlink-key`), read before the flight starts.
+    pub key: Option<Secret>,
     /// The run's stop flag: MAVLink's shutdown command sets it directly, so a stop ends the
     /// run even while a task is stuck (the stop guard of `host.rs` does the rest).
     pub stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
