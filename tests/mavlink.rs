@@ -247,9 +247,10 @@ fn a_parked_vehicle_speaks_mavlink_to_pymavlink() {
         mv >= lo * 1e3 - 1.0 && mv <= hi * 1e3 + 1.0,
         "{mv} mV not in the log's {lo}..{hi} V"
     );
-    assert_eq!(
-        f(&last("SYS_STATUS")["voltage_battery"]),
-        f(&last("SYS_STATUS")["voltage_battery"]).round()
+    let mv = f(&last("SYS_STATUS")["voltage_battery"]);
+    assert!(
+        mv >= lo * 1e3 - 1.0 && mv <= hi * 1e3 + 1.0,
+        "SYS_STATUS {mv} mV not in the log's {lo}..{hi} V"
     );
     for ch in 1..=8 {
         let logged = column(&csv.join("servo.1.csv"), &format!("ch{ch}_us"));
@@ -604,7 +605,9 @@ fn a_flood_of_forged_frames_does_not_lock_out_the_key_holder() {
     for i in 0..30 {
         let value = 0.5 + 0.01 * i as f32;
         let mut got = false;
-        for _attempt in 0..3 {
+        // A ground station resends a set that gets no answer (the flood fills the socket's
+        // buffer, and the kernel drops what does not fit, genuine or not).
+        for _attempt in 0..5 {
             let _ = ground.send_to(&frame(&set(value), &signing), vehicle);
             let deadline = Instant::now() + Duration::from_secs(1);
             while !got && Instant::now() < deadline {

@@ -910,6 +910,9 @@ fn fly_with<P: Platform>(
     let faults = fault_plan(&SHIPPED, &args.inject_overrun)?;
     let stop = stop_flag()?;
     let mavlink = if matches!(devices, Devices::None) {
+        if !args.mavlink.endpoints.is_empty() {
+            return Err("--mavlink needs a vehicle: `skyframe sim` or `skyframe run`".into());
+        }
         None
     } else {
         args.mavlink.plan(args.link.vehicle_id, &stop)?
