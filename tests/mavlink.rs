@@ -162,6 +162,9 @@ fn a_parked_vehicle_speaks_mavlink_to_pymavlink() {
             mission.to_str().expect("path"),
             "--mavlink",
             &endpoint,
+            // A warning the vehicle reports: imu over its budget in frames 500..505 (5 s).
+            "--inject-overrun",
+            "imu:1000@500..505",
         ],
     );
     let seen = ground(port, "parked", None);
@@ -262,6 +265,27 @@ fn a_parked_vehicle_speaks_mavlink_to_pymavlink() {
     for bit in [1u32, 2, 32, 0x8000, 0x20_0000] {
         assert_eq!(present & bit, bit, "sensor bit {bit:#x} not present");
     }
+
+    // The injected overruns, as the health log counted them, reach the ground as text.
+    let health = csv.join("health.1.csv");
+    let imu_task = 0.0; // the frame table's first task
+    let overruns = column(&health, "task")
+        .iter()
+        .zip(column(&health, "overruns_budget"))
+        .filter(|(t, _)| **t == imu_task)
+        .map(|(_, n)| n)
+        .fold(0.0, f64::max);
+    assert!(overruns >= 1.0, "the log counted the overruns");
+    let texts: Vec<&str> = seen["statustexts"]
+        .as_array()
+        .expect("texts")
+        .iter()
+        .filter_map(|t| t.as_str())
+        .collect();
+    assert!(
+        texts.iter().any(|t| t.starts_with("imu: budget overruns")),
+        "{texts:?}"
+    );
 
     // AUTOPILOT_VERSION on MAV_CMD_REQUEST_MESSAGE.
     assert_eq!(seen["autopilot_version_ack"], 0);
@@ -416,6 +440,9 @@ fn with_speedup_the_auto_mission_reports_every_waypoint_reached() {
     assert_eq!(highest as usize, waypoint_seqs.len() - 1);
     // Paced: 235 s of flight at 8× is ~29 s of wall time (slower if the machine is).
     let speed_up = f(&report["speed_up"]);
+    eprintln!(
+        "mavlink auto: reached {reached:?}, modes {modes:?}, flight/wall {speed_up:.2}x, test wall {wall:.1} s"
+    );
     assert!(speed_up <= 8.4, "speed-up {speed_up:.1} above the pace");
     assert!(wall > 235.0 / 8.4, "{wall:.1} s of wall time");
 }
@@ -498,6 +525,11 @@ fn a_mavlink_shutdown_ends_a_run_with_a_stuck_task_within_a_second() {
     assert_eq!(seen["stop_ack"], 0, "shutdown accepted");
     let out = sim.wait_with_output().expect("ends");
     let took = sent.elapsed();
+    eprintln!(
+        "mavlink stop: exit {:?} {:.0} ms after the shutdown's COMMAND_ACK",
+        out.status.code(),
+        took.as_secs_f64() * 1e3
+    );
     assert!(took < Duration::from_secs(1), "took {took:?}");
     assert_eq!(
         out.status.code(),
