@@ -542,9 +542,12 @@ pub fn fly<P: Platform>(
     if let (Some((key_file, key, run_id, (port, join, io), plan_link)), Some(link_log)) =
         (link, link_stream)
     {
-        let local = io
-            .local
-            .map_or_else(|| plan_link.commands.to_string(), |a| a.to_string());
+        let local = match io.local {
+            Some(a) => a.to_string(),
+            // --no-link with --mavlink: the link thread carries MAVLink's traffic only.
+            None if !plan_link.network => "none (--no-link; MAVLink only)".to_string(),
+            None => plan_link.commands.to_string(),
+        };
         telemetry_task = Some(TelemetryTask::new(
             port,
             TappedSink {
