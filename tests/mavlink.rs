@@ -703,12 +703,15 @@ fn two_simulators_appear_as_two_vehicles_in_one_ground_station() {
     let sims: Vec<Child> = ["1", "2"]
         .iter()
         .map(|sysid| {
+            // With the skyframe link on as well (the second takes a free command port):
+            // MAVLink works beside it.
             start_sim(
                 &dir.join(sysid),
                 &[
                     "--speedup",
                     "1",
-                    "--no-link",
+                    "--telemetry",
+                    "127.0.0.1:9",
                     "--scenario",
                     scenario.to_str().expect("path"),
                     "--mavlink",

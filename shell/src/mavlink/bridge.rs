@@ -140,6 +140,9 @@ struct Bridge {
     stop: Arc<AtomicBool>,
     started: Instant,
     params_asked: Option<Instant>,
+    /// A PARAM_REQUEST_LIST came before the vehicle had reported every parameter: answer it
+    /// when the table is whole.
+    list_wanted: bool,
     warned: HashMap<String, Instant>,
 }
 
@@ -203,6 +206,7 @@ pub fn spawn(setup: BridgeSetup) -> Result<JoinHandle<()>, String> {
         stop: setup.plan.stop,
         started: Instant::now(),
         params_asked: None,
+        list_wanted: false,
         warned: HashMap::new(),
     };
     std::thread::Builder::new()
@@ -395,7 +399,15 @@ impl Bridge {
         };
         for event in self.view.take(t) {
             match event {
-                Event::ParamValue(p) => self.params.update(&p),
+                Event::ParamValue(p) => {
+                    self.params.update(&p);
+                    if self.list_wanted && self.params.complete() {
+                        self.list_wanted = false;
+                        for i in 0..self.params.count() {
+                            self.send_param(i);
+                        }
+                    }
+                }
                 Event::CommandAck(a) if a.command_sender_id == LINK_SENDER_ID => {
                     self.vehicle_answered(a);
                 }
@@ -718,6 +730,9 @@ impl Bridge {
     fn handle(&mut self, a: Accepted) {
         let from = (a.header.system_id, a.header.component_id);
         match a.message {
+            MavMessage::PARAM_REQUEST_LIST(_) if !self.params.complete() => {
+                self.list_wanted = true;
+            }
             MavMessage::PARAM_REQUEST_LIST(_) => {
                 for i in 0..self.params.count() {
                     self.send_param(i);
