@@ -438,6 +438,17 @@ fn with_speedup_the_auto_mission_reports_every_waypoint_reached() {
         .map(|(_, w)| *w)
         .fold(0.0, f64::max);
     assert_eq!(highest as usize, waypoint_seqs.len() - 1);
+    // In the air (the parked test sees ON_GROUND), and as high as the estimator logged
+    // (GLOBAL_POSITION_INT samples it at 5 Hz of wall time: 1.6 s of flight at 8×).
+    let landed = seen["landed_states"].as_array().expect("landed");
+    assert!(landed.contains(&serde_json::json!(2)), "IN_AIR: {landed:?}");
+    let pd = column(&csv.join("estimator.1.csv"), "pd_m");
+    let logged_top = pd.iter().fold(f64::MIN, |a, d| a.max(-d));
+    let seen_top = f(&seen["highest_relative_alt_mm"]) * 1e-3;
+    assert!(
+        (seen_top - logged_top).abs() < 5.0,
+        "highest {seen_top:.1} m on MAVLink, {logged_top:.1} m in the log"
+    );
     // Paced: 235 s of flight at 8× is ~29 s of wall time (slower if the machine is).
     let speed_up = f(&report["speed_up"]);
     eprintln!(

@@ -204,20 +204,28 @@ elif PHASE == "auto":
     out["upload_same"] = mission_upload(items) if items else None
     reached = []
     modes = set()
+    landed = set()
+    top_mm = None
     end = time.time() + float(sys.argv[3]) if len(sys.argv) > 3 else time.time() + 60
     while time.time() < end:
-        msg = m.recv_match(type=["MISSION_ITEM_REACHED", "HEARTBEAT"], blocking=True, timeout=0.5)
+        msg = m.recv_match(type=["MISSION_ITEM_REACHED", "HEARTBEAT", "EXTENDED_SYS_STATE", "GLOBAL_POSITION_INT"], blocking=True, timeout=0.5)
         if msg is None:
             hello()
             continue
         if msg.get_type() == "HEARTBEAT":
             modes.add(msg.custom_mode)
+        elif msg.get_type() == "EXTENDED_SYS_STATE":
+            landed.add(msg.landed_state)
+        elif msg.get_type() == "GLOBAL_POSITION_INT":
+            top_mm = msg.relative_alt if top_mm is None else max(top_mm, msg.relative_alt)
         else:
             reached.append(msg.seq)
             if items and len(reached) >= sum(1 for i in items if i["command"] == mav.MAV_CMD_NAV_WAYPOINT):
                 break
     out["reached"] = reached
     out["modes"] = sorted(modes)
+    out["landed_states"] = sorted(landed)
+    out["highest_relative_alt_mm"] = top_mm
 elif PHASE == "signed":
     if KEY is not None:
         # Receive signed telemetry; send nothing signed yet.
