@@ -125,6 +125,26 @@ fn column(csv: &Path, name: &str) -> Vec<f64> {
     csv_rows(csv).iter().map(|r| r[index]).collect()
 }
 
+/// The row of a `skyframe-log to-csv` file at log TIME `t_s` (to the millisecond), by
+/// column name.
+fn row_at(csv: &Path, t_s: f64) -> std::collections::HashMap<String, f64> {
+    let text = std::fs::read_to_string(csv).expect("csv");
+    let header = text
+        .lines()
+        .find(|l| l.starts_with("% time,"))
+        .expect("header");
+    let names: Vec<&str> = header.trim_start_matches("% ").split(',').collect();
+    let row = csv_rows(csv)
+        .into_iter()
+        .find(|r| (r[0] - t_s).abs() < 0.0005)
+        .unwrap_or_else(|| panic!("no record at {t_s} s in {}", csv.display()));
+    names
+        .iter()
+        .zip(row)
+        .map(|(n, v)| (n.to_string(), v))
+        .collect()
+}
+
 /// Metres between two latitude/longitude points (equirectangular: fine over metres).
 fn metres(lat1: f64, lon1: f64, lat2: f64, lon2: f64) -> f64 {
     let r = 6_371_000.0;
@@ -207,6 +227,47 @@ fn a_parked_vehicle_speaks_mavlink_to_pymavlink() {
     ] {
         assert!(!last(t).is_null(), "no {t}");
     }
+    // ATTITUDE and GLOBAL_POSITION_INT are the estimator's log record at their time_boot_ms
+    // (virtual time: log TIME = time since start), value for value (the log's text keeps
+    // 5 decimals of radians, 3 of metres).
+    let att = last("ATTITUDE");
+    let rec = row_at(
+        &csv.join("estimator.1.csv"),
+        f(&att["time_boot_ms"]) / 1000.0,
+    );
+    assert!(
+        (f(&att["roll"]) - rec["roll_rad"]).abs() <= 6e-6,
+        "{att} vs {rec:?}"
+    );
+    assert!(
+        (f(&att["pitch"]) - rec["pitch_rad"]).abs() <= 6e-6,
+        "{att} vs {rec:?}"
+    );
+    let yaw = (rec["yaw_rad"] + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
+        - std::f64::consts::PI;
+    assert!((f(&att["yaw"]) - yaw).abs() <= 6e-6, "{att} vs {rec:?}");
+    let gpi = last("GLOBAL_POSITION_INT");
+    let rec = row_at(
+        &csv.join("estimator.1.csv"),
+        f(&gpi["time_boot_ms"]) / 1000.0,
+    );
+    assert!(
+        (f(&gpi["relative_alt"]) * 1e-3 + rec["pd_m"]).abs() <= 0.0011,
+        "{gpi} vs {rec:?}"
+    );
+    assert!(
+        (f(&gpi["vx"]) * 1e-2 - rec["vn_m_s"]).abs() <= 0.0051,
+        "{gpi} vs {rec:?}"
+    );
+    assert!(
+        (f(&gpi["vy"]) * 1e-2 - rec["ve_m_s"]).abs() <= 0.0051,
+        "{gpi} vs {rec:?}"
+    );
+    assert!(
+        (f(&gpi["vz"]) * 1e-2 - rec["vd_m_s"]).abs() <= 0.0051,
+        "{gpi} vs {rec:?}"
+    );
+
     // Parked: level within 3°, on the ground, where the scenario put it.
     assert!(f(&last("ATTITUDE")["roll"]).abs() < 3f64.to_radians());
     assert!(f(&last("ATTITUDE")["pitch"]).abs() < 3f64.to_radians());

@@ -315,22 +315,6 @@ pub fn fly<P: Platform>(
             }
             other => other?,
         };
-        if let (Some(mplan), Some(ends)) = (&plan.mavlink, mavlink_ends.take()) {
-            mavlink_counters = Some(Arc::clone(&ends.counters));
-            mavlink_join = Some(crate::mavlink::bridge::spawn(
-                crate::mavlink::bridge::BridgeSetup {
-                    plan: mplan.clone(),
-                    signing_key: mavlink_key,
-                    link_key: key.clone(),
-                    run_id,
-                    vehicle_id: plan_link.vehicle_id,
-                    task_names: table.tasks.iter().map(|t| t.name.to_string()).collect(),
-                    mission: plan.mission.clone(),
-                    ends,
-                    io_stop: Arc::clone(&io_stop),
-                },
-            )?);
-        }
         link = Some((key_file, key, run_id, spawned, plan_link.clone()));
     }
 
@@ -422,6 +406,26 @@ pub fn fly<P: Platform>(
             .map_or(0, |d| u64::try_from(d.as_nanos()).unwrap_or(0))
     };
     let mut timing = TimingLog::start(timing_stream, table, time_origin_ns, 0)?;
+    // The MAVLink endpoint, on the link's rings (docs/mavlink.md).
+    if let (Some(mplan), Some(ends), Some((_, key, run_id, _, plan_link))) =
+        (&plan.mavlink, mavlink_ends.take(), &link)
+    {
+        mavlink_counters = Some(Arc::clone(&ends.counters));
+        mavlink_join = Some(crate::mavlink::bridge::spawn(
+            crate::mavlink::bridge::BridgeSetup {
+                plan: mplan.clone(),
+                signing_key: mavlink_key,
+                link_key: key.clone(),
+                run_id: *run_id,
+                vehicle_id: plan_link.vehicle_id,
+                task_names: table.tasks.iter().map(|t| t.name.to_string()).collect(),
+                mission: plan.mission.clone(),
+                time_origin_ns,
+                ends,
+                io_stop: Arc::clone(&io_stop),
+            },
+        )?);
+    }
 
     // The data path between tasks.
     let imu_samples: LatestSlot<ImuSample> = LatestSlot::new();

@@ -41,6 +41,8 @@ pub struct BridgeSetup {
     pub vehicle_id: u16,
     pub task_names: Vec<String>,
     pub mission: Option<Mission>,
+    /// Log TIME of the executive's clock zero: MAVLink's `time_boot_ms` is log TIME minus it.
+    pub time_origin_ns: u64,
     pub ends: BridgeEnds,
     /// Ends the thread (the flight's I/O stop, set after the executive ended).
     pub io_stop: Arc<AtomicBool>,
@@ -189,7 +191,7 @@ pub fn spawn(setup: BridgeSetup) -> Result<JoinHandle<()>, String> {
         vehicle_id: setup.vehicle_id,
         link_sequence: 0,
         ends: setup.ends,
-        view: VehicleView::new(setup.task_names),
+        view: VehicleView::new(setup.task_names, setup.time_origin_ns),
         params: ParamCache::default(),
         pending: HashMap::new(),
         streams: STREAMS

@@ -236,7 +236,7 @@ pub fn attitude(view: &VehicleView) -> Option<ATTITUDE_DATA> {
     // MAVLink's yaw is −π..π.
     let yaw = (yaw + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
     Some(ATTITUDE_DATA {
-        time_boot_ms: view.time_boot_ms(),
+        time_boot_ms: view.boot_ms_of("estimator", "roll_rad")?,
         roll: view.get("estimator", "roll_rad")? as f32,
         pitch: view.get("estimator", "pitch_rad")? as f32,
         yaw: yaw as f32,
@@ -252,7 +252,7 @@ pub fn global_position_int(
 ) -> Option<GLOBAL_POSITION_INT_DATA> {
     let p = position(view, home)?;
     Some(GLOBAL_POSITION_INT_DATA {
-        time_boot_ms: view.time_boot_ms(),
+        time_boot_ms: view.boot_ms_of("estimator", "pn_m")?,
         lat: deg_e7(p.latitude_deg),
         lon: deg_e7(p.longitude_deg),
         alt: mm(p.altitude_m),

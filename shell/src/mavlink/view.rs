@@ -34,8 +34,8 @@ pub struct VehicleView {
     records: HashMap<(u8, u8), Record>,
     statuses: HashMap<u8, TaskStatus>,
     pub executive: Option<ExecutiveStatus>,
-    /// Log TIME of the first record seen: MAVLink's `time_boot_ms` counts from it.
-    first_time_ns: Option<i128>,
+    /// Log TIME of the executive's clock zero: `time_boot_ms` = record TIME − this.
+    origin_ns: i128,
     latest_time_ns: i128,
     /// Last seen value of counters that warn when they grow, by (task, counter).
     counters: HashMap<(String, &'static str), f64>,
@@ -55,9 +55,10 @@ pub fn value_f64(v: &Value) -> f64 {
 const ESTIMATOR_RESETS: [&str; 3] = ["resets", "gps_resets", "align_restarts"];
 
 impl VehicleView {
-    pub fn new(task_names: Vec<String>) -> Self {
+    pub fn new(task_names: Vec<String>, origin_ns: u64) -> Self {
         Self {
             task_names,
+            origin_ns: i128::from(origin_ns),
             ..Self::default()
         }
     }
@@ -84,7 +85,6 @@ impl VehicleView {
             }
             Telemetry::TaskData(d) => {
                 let time_ns = i128::from(d.time.sec) * 1_000_000_000 + i128::from(d.time.nsec);
-                self.first_time_ns.get_or_insert(time_ns);
                 self.latest_time_ns = self.latest_time_ns.max(time_ns);
                 let key = (d.task_index, d.format_index);
                 let record = self.records.entry(key).or_default();
@@ -181,10 +181,26 @@ impl VehicleView {
         self.statuses.get(&self.task_index(task)?)
     }
 
-    /// Milliseconds of vehicle time since the first record seen.
+    fn boot_ms(&self, time_ns: i128) -> u32 {
+        u32::try_from((time_ns - self.origin_ns).max(0) / 1_000_000).unwrap_or(u32::MAX)
+    }
+
+    /// Milliseconds of the executive's clock at the newest record seen (MAVLink's
+    /// `time_boot_ms`: the log's TIME less its origin, so a message finds its log record).
     pub fn time_boot_ms(&self) -> u32 {
-        let since = self.latest_time_ns - self.first_time_ns.unwrap_or(self.latest_time_ns);
-        u32::try_from(since / 1_000_000).unwrap_or(u32::MAX)
+        self.boot_ms(self.latest_time_ns)
+    }
+
+    /// [`Self::time_boot_ms`] of the record `column` of `task` comes from: the time of the
+    /// values a message takes from it.
+    pub fn boot_ms_of(&self, task: &str, column: &str) -> Option<u32> {
+        let index = self.task_index(task)?;
+        let key = self
+            .columns
+            .iter()
+            .find(|((t, _), names)| *t == index && names.iter().any(|c| c == column))
+            .map(|(key, _)| *key)?;
+        self.records.get(&key).map(|r| self.boot_ms(r.time_ns))
     }
 
     /// The flight mode: the control task's, else the executive's report.
@@ -207,7 +223,7 @@ mod tests {
     use skyframe_core::logfmt::Time;
 
     fn view() -> VehicleView {
-        VehicleView::new(vec!["imu".into(), "estimator".into()])
+        VehicleView::new(vec!["imu".into(), "estimator".into()], 1_000_000_000)
     }
 
     #[test]
@@ -236,7 +252,10 @@ mod tests {
             ..data
         };
         v.take(Telemetry::TaskData(later));
-        assert_eq!(v.time_boot_ms(), 2500);
+        // TIME 12.500000005 s, origin 1 s.
+        assert_eq!(v.time_boot_ms(), 11_500);
+        assert_eq!(v.boot_ms_of("estimator", "roll_rad"), Some(11_500));
+        assert_eq!(v.boot_ms_of("estimator", "yaw_rad"), None);
         assert_eq!(v.updates("estimator"), 2);
     }
 
