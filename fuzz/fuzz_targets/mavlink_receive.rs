@@ -35,7 +35,12 @@ fuzz_target!(|data: &[u8]| {
             match accepted.message {
                 MavMessage::PARAM_SET(s) => {
                     let _ = id_from_bytes(&s.param_id[..]);
-                    for t in [ValueType::Bool, ValueType::I32, ValueType::U32, ValueType::F32] {
+                    for t in [
+                        ValueType::Bool,
+                        ValueType::I32,
+                        ValueType::U32,
+                        ValueType::F32,
+                    ] {
                         let _ = decode_value(s.param_value, t);
                     }
                 }
