@@ -162,9 +162,11 @@ fn a_task_added_through_the_registry_is_analysed_flown_logged_converted_and_sent
                 telemetry: vec![ground_address],
                 vehicle_id: 1,
                 sign_telemetry: false,
+                network: true,
             }),
             mission: None,
             registry: &registry,
+            mavlink: None,
             options: RunOptions::new(Some(Duration::from_secs(20)), &stop),
         },
     )

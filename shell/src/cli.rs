@@ -167,7 +167,70 @@ pub struct FlightArgs {
     #[command(flatten)]
     pub link: LinkArgs,
     #[command(flatten)]
+    pub mavlink: MavlinkArgs,
+    #[command(flatten)]
     pub realtime: RealtimeArgs,
+}
+
+/// The MAVLink 2 endpoint (`docs/mavlink.md`).
+#[derive(Args, Debug, Clone)]
+pub struct MavlinkArgs {
+    /// A MAVLink 2 endpoint: udpout:HOST:PORT (send to a ground station that listens, e.g.
+    /// QGroundControl on 14550; answer whoever talks back) or udpin:ADDR:PORT (listen).
+    /// Repeatable. Works with or without the skyframe link.
+    #[arg(id = "mavlink", long = "mavlink", value_name = "ENDPOINT", value_parser = crate::mavlink::parse_endpoint)]
+    pub endpoints: Vec<crate::mavlink::Endpoint>,
+    /// MAVLink system id, 1..=255 (default: the vehicle id). Component 1, the autopilot.
+    #[arg(id = "mavlink_sysid", long = "mavlink-sysid", value_name = "N", value_parser = clap::value_parser!(u8).range(1..=255))]
+    pub system_id: Option<u8>,
+    /// MAVLink 2 signing secret (32 bytes: 64 hex digits or raw, mode 600, as --key): then
+    /// unsigned, badly signed and replayed messages that change anything are dropped and
+    /// counted, and everything sent is signed.
+    #[arg(id = "mavlink_key", long = "mavlink-key", value_name = "FILE")]
+    pub key: Option<PathBuf>,
+}
+
+impl MavlinkArgs {
+    pub fn plan(
+        &self,
+        vehicle_id: u16,
+        stop: &Arc<AtomicBool>,
+    ) -> Result<Option<crate::mavlink::MavlinkPlan>, String> {
+        if self.endpoints.is_empty() {
+            if self.system_id.is_some() || self.key.is_some() {
+                return Err("--mavlink-sysid and --mavlink-key need --mavlink ENDPOINT".into());
+            }
+            return Ok(None);
+        }
+        let system_id = match self.system_id {
+            Some(id) => id,
+            None => u8::try_from(vehicle_id)
+                .ok()
+                .filter(|id| *id != 0)
+                .ok_or_else(|| {
+                    format!(
+                        "--mavlink-sysid N is needed: the vehicle id {vehicle_id} is not a MAVLink system id (1..=255)"
+                    )
+                })?,
+        };
+        // Read now: a bad key file is refused before anything flies.
+        let key = match &self.key {
+            Some(path) => Some(crate::mavlink::Secret(crate::mavlink::load_key(path)?)),
+            None => None,
+        };
+        if key.is_none() {
+            eprintln!(
+                "WARNING: the MAVLink endpoint accepts commands, parameter changes and modes from \
+                 anyone who can reach it (no --mavlink-key)"
+            );
+        }
+        Ok(Some(crate::mavlink::MavlinkPlan {
+            endpoints: self.endpoints.clone(),
+            system_id,
+            key,
+            stop: Arc::clone(stop),
+        }))
+    }
 }
 
 /// The telemetry link (`docs/link-protocol.md`).
@@ -195,7 +258,20 @@ pub struct LinkArgs {
 }
 
 impl LinkArgs {
-    pub fn plan(&self) -> Result<Option<LinkPlan>, String> {
+    /// `mavlink`: a MAVLink endpoint needs the link's rings and thread even with
+    /// `--no-link` (then without a socket or key file).
+    pub fn plan(&self, mavlink: bool) -> Result<Option<LinkPlan>, String> {
+        if self.no_link && mavlink {
+            return Ok(Some(LinkPlan {
+                key: None,
+                commands: std::net::SocketAddr::from(([127, 0, 0, 1], 0)),
+                commands_is_default: false,
+                telemetry: Vec::new(),
+                vehicle_id: self.vehicle_id,
+                sign_telemetry: false,
+                network: false,
+            }));
+        }
         if self.no_link {
             return Ok(None);
         }
@@ -215,6 +291,7 @@ impl LinkArgs {
             telemetry,
             vehicle_id: self.vehicle_id,
             sign_telemetry: self.sign_telemetry,
+            network: true,
         }))
     }
 }
@@ -226,8 +303,12 @@ pub struct SimArgs {
     #[arg(long, value_name = "FILE")]
     pub scenario: Option<PathBuf>,
     /// Virtual time: as fast as the machine allows, deterministic for a seed.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "speedup")]
     pub fast: bool,
+    /// Virtual time paced at N times real time (1..=1000; ArduPilot SITL's --speedup): a
+    /// ground station watches the flight accelerated. The same flight as --fast.
+    #[arg(long, value_name = "N", value_parser = parse_speedup)]
+    pub speedup: Option<f64>,
     /// Seed of every random process of the simulation (noise, gusts, GPS jitter); default:
     /// the scenario's.
     #[arg(long)]
@@ -284,6 +365,11 @@ pub struct SoakArgs {
 
 fn parse_latency_ms(text: &str) -> Result<f64, String> {
     number_within(text, 0.0, 2000.0, "milliseconds")
+}
+
+fn parse_speedup(text: &str) -> Result<f64, String> {
+    let r = crate::speedup::SPEEDUP_RANGE;
+    number_within(text, *r.start(), *r.end(), "speedup")
 }
 
 fn parse_hours(text: &str) -> Result<f64, String> {
@@ -538,6 +624,10 @@ fn run<P: Platform>(platform: &P, command: Command) -> Result<ExitCode, String> 
                 // The timer check measures the OS timer, which virtual time does not use.
                 flight.timer_check_ms = 0;
                 fly_with(&VirtualTime, devices, &flight, &log, probe)?
+            } else if let Some(speedup) = args.speedup {
+                flight.timer_check_ms = 0;
+                let paced = crate::speedup::PacedTime { speedup };
+                fly_with(&paced, devices, &flight, &log, probe)?
             } else {
                 fly_with(platform, devices, &flight, &log, probe)?
             };
@@ -819,6 +909,14 @@ fn fly_with<P: Platform>(
 ) -> Result<FlightReport, String> {
     let faults = fault_plan(&SHIPPED, &args.inject_overrun)?;
     let stop = stop_flag()?;
+    let mavlink = if matches!(devices, Devices::None) {
+        if !args.mavlink.endpoints.is_empty() {
+            return Err("--mavlink needs a vehicle: `skyframe sim` or `skyframe run`".into());
+        }
+        None
+    } else {
+        args.mavlink.plan(args.link.vehicle_id, &stop)?
+    };
     fly(
         platform,
         &SHIPPED,
@@ -838,8 +936,9 @@ fn fly_with<P: Platform>(
             link: if matches!(devices, Devices::None) {
                 None
             } else {
-                args.link.plan()?
+                args.link.plan(mavlink.is_some())?
             },
+            mavlink,
             devices,
             options: RunOptions {
                 faults,

@@ -59,6 +59,8 @@ pub struct FlightPlan<'a> {
     /// The tasks the schedule's names stand for ([`crate::tasks::REGISTRY`]).
     pub registry: &'a [TaskEntry],
     pub options: RunOptions<'a>,
+    /// The MAVLink endpoint (`--mavlink`); it needs `link` (see [`LinkPlan::network`]).
+    pub mavlink: Option<crate::mavlink::MavlinkPlan>,
 }
 
 /// How the flight talks to the ground.
@@ -73,6 +75,9 @@ pub struct LinkPlan {
     pub telemetry: Vec<std::net::SocketAddr>,
     pub vehicle_id: u16,
     pub sign_telemetry: bool,
+    /// `false`: no skyframe link on the network (`--no-link` with `--mavlink`): no socket,
+    /// no key file; the rings and the link thread carry MAVLink's traffic only.
+    pub network: bool,
 }
 
 /// The link at the end of the flight.
@@ -164,6 +169,8 @@ pub struct FlightReport {
     pub log_streams: Vec<StreamReport>,
     pub devices: Vec<DeviceReport>,
     pub link: Option<LinkReport>,
+    /// The MAVLink endpoint's counters (`--mavlink`).
+    pub mavlink: Option<crate::mavlink::ingress::CountersReport>,
 }
 
 /// The log streams of one flight, and their statuses for the report.
@@ -239,9 +246,20 @@ pub fn fly<P: Platform>(
     let ingress = Arc::new(IngressCounters::new());
     let log_health = Arc::new(LogHealthCell::new());
     let mut link = None;
+    let mavlink_key = plan.mavlink.as_ref().and_then(|m| m.key).map(|k| k.0);
+    let (mut mavlink_hook, mut mavlink_ends) = match &plan.mavlink {
+        Some(_) => {
+            let (hook, ends) = crate::mavlink::hook_pair();
+            (Some(hook), Some(ends))
+        }
+        None => (None, None),
+    };
+    let mut mavlink_join = None;
+    let mut mavlink_counters = None;
     if let Some(plan_link) = &plan.link {
         let (key_file, key) = match &plan_link.key {
             Some(path) => (path.clone(), crate::link::load_key(path)?),
+            None if !plan_link.network => (PathBuf::new(), crate::mavlink::memory_key()?),
             None => {
                 let (path, key) = crate::link::write_new_key(&flight_dir)?;
                 eprintln!(
@@ -257,20 +275,28 @@ pub fn fly<P: Platform>(
             vehicle_id: plan_link.vehicle_id,
             ingress: Arc::clone(&ingress),
         };
-        let spawned = crate::link::spawn_link(
-            plan_link.commands,
+        let spawned = crate::link::spawn_link_with(
+            plan_link.network.then_some(plan_link.commands),
             plan_link.telemetry.clone(),
             screen(),
             Arc::clone(&io_stop),
+            mavlink_hook.take(),
         );
         let spawned = match spawned {
             Err(e) if plan_link.commands_is_default => {
                 let any = std::net::SocketAddr::new(plan_link.commands.ip(), 0);
-                let spawned = crate::link::spawn_link(
-                    any,
+                // The failed try took MAVLink's hook with it: a fresh pair.
+                let hook = plan.mavlink.as_ref().map(|_| {
+                    let (hook, ends) = crate::mavlink::hook_pair();
+                    mavlink_ends = Some(ends);
+                    hook
+                });
+                let spawned = crate::link::spawn_link_with(
+                    Some(any),
                     plan_link.telemetry.clone(),
                     screen(),
                     Arc::clone(&io_stop),
+                    hook,
                 )?;
                 log::warn!("{e}: listening for commands on a free port instead");
                 spawned
@@ -387,6 +413,26 @@ pub fn fly<P: Platform>(
             .map_or(0, |d| u64::try_from(d.as_nanos()).unwrap_or(0))
     };
     let mut timing = TimingLog::start(timing_stream, table, time_origin_ns, 0)?;
+    // The MAVLink endpoint, on the link's rings (docs/mavlink.md).
+    if let (Some(mplan), Some(ends), Some((_, key, run_id, _, plan_link))) =
+        (&plan.mavlink, mavlink_ends.take(), &link)
+    {
+        mavlink_counters = Some(Arc::clone(&ends.counters));
+        mavlink_join = Some(crate::mavlink::bridge::spawn(
+            crate::mavlink::bridge::BridgeSetup {
+                plan: mplan.clone(),
+                signing_key: mavlink_key,
+                link_key: key.clone(),
+                run_id: *run_id,
+                vehicle_id: plan_link.vehicle_id,
+                task_names: table.tasks.iter().map(|t| t.name.to_string()).collect(),
+                mission: plan.mission.clone(),
+                time_origin_ns,
+                ends,
+                io_stop: Arc::clone(&io_stop),
+            },
+        )?);
+    }
 
     // The data path between tasks.
     let shared = Shared::default();
@@ -412,9 +458,12 @@ pub fn fly<P: Platform>(
     let mut link_parts = None;
     let mut link_io = None;
     if let Some((key_file, key, run_id, (port, join, io), plan_link)) = link {
-        let local = io
-            .local
-            .map_or_else(|| plan_link.commands.to_string(), |a| a.to_string());
+        let local = match io.local {
+            Some(a) => a.to_string(),
+            // --no-link with --mavlink: the link thread carries MAVLink's traffic only.
+            None if !plan_link.network => "none (--no-link; MAVLink only)".to_string(),
+            None => plan_link.commands.to_string(),
+        };
         link_parts = Some(LinkParts {
             port,
             key,
@@ -529,6 +578,9 @@ pub fn fly<P: Platform>(
             devices.push(device_report(name, None, &stats(name)));
         }
     }
+    if let Some(join) = mavlink_join {
+        let _ = join.join();
+    }
     let link = link_io.map(|(key_file, run_id, join, io, commands_address)| {
         let _ = join.join();
         let counters = reports.link.unwrap_or_default();
@@ -573,6 +625,7 @@ pub fn fly<P: Platform>(
             .collect(),
         devices,
         link,
+        mavlink: mavlink_counters.map(|c| c.snapshot()),
     })
 }
 
@@ -668,6 +721,24 @@ pub fn render_flight(report: &FlightReport) -> String {
             d.framing_errors,
             d.overflows,
             d.stale_events,
+        );
+    }
+    if let Some(m) = &report.mavlink {
+        out += &format!(
+            "mavlink: {} datagrams in, {} accepted; refused: {} rate-limited, {} malformed, \
+             {} unknown, {} unsigned, {} bad signature, {} replayed, {} for another system; \
+             {} frames out ({} send errors)\n",
+            m.datagrams_in,
+            m.accepted,
+            m.rate_limited,
+            m.malformed,
+            m.unknown,
+            m.unsigned,
+            m.bad_signature,
+            m.replayed,
+            m.other_target,
+            m.frames_out,
+            m.send_errors,
         );
     }
     out += &format!("flight directory: {}\n", report.flight_dir.display());

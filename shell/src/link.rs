@@ -136,16 +136,35 @@ pub fn spawn_link(
     screen: Screen,
     stop: Arc<AtomicBool>,
 ) -> Result<(RingDatagrams, JoinHandle<()>, Arc<LinkIo>), String> {
-    let socket = UdpSocket::bind(bind).map_err(|e| format!("--commands {bind}: {e}"))?;
-    socket
-        .set_read_timeout(Some(Duration::from_millis(5)))
-        .map_err(|e| format!("--commands {bind}: {e}"))?;
-    // Telemetry may go to a broadcast address.
-    let _ = socket.set_broadcast(true);
+    spawn_link_with(Some(bind), telemetry, screen, stop, None)
+}
+
+/// [`spawn_link`], with the MAVLink endpoint's hook (it sees every telemetry datagram and
+/// queues its commands here), and without a socket when `bind` is `None` (`--no-link` with
+/// `--mavlink`: the rings and this thread carry MAVLink's traffic only).
+pub fn spawn_link_with(
+    bind: Option<SocketAddr>,
+    telemetry: Vec<SocketAddr>,
+    screen: Screen,
+    stop: Arc<AtomicBool>,
+    hook: Option<crate::mavlink::LinkHook>,
+) -> Result<(RingDatagrams, JoinHandle<()>, Arc<LinkIo>), String> {
+    let socket = match bind {
+        Some(bind) => {
+            let socket = UdpSocket::bind(bind).map_err(|e| format!("--commands {bind}: {e}"))?;
+            socket
+                .set_read_timeout(Some(Duration::from_millis(5)))
+                .map_err(|e| format!("--commands {bind}: {e}"))?;
+            // Telemetry may go to a broadcast address.
+            let _ = socket.set_broadcast(true);
+            Some(socket)
+        }
+        None => None,
+    };
     let (rx_in, rx_out) = rtrb::RingBuffer::new(RING_BYTES);
     let (tx_in, tx_out) = rtrb::RingBuffer::new(RING_BYTES);
     let io = Arc::new(LinkIo {
-        local: socket.local_addr().ok(),
+        local: socket.as_ref().and_then(|s| s.local_addr().ok()),
         ..LinkIo::default()
     });
     let thread_io = Arc::clone(&io);
@@ -154,7 +173,14 @@ pub fn spawn_link(
         .stack_size(256 * 1024)
         .spawn(move || {
             link_thread(
-                &socket, &telemetry, &screen, rx_in, tx_out, &thread_io, &stop,
+                socket.as_ref(),
+                &telemetry,
+                &screen,
+                rx_in,
+                tx_out,
+                &thread_io,
+                &stop,
+                hook.as_ref(),
             )
         })
         .map_err(|e| format!("cannot start the link thread: {e}"))?;
@@ -172,22 +198,42 @@ pub fn spawn_link(
 /// socket is drained in batches and telemetry still goes out between them.
 const RECEIVE_BATCH: usize = 256;
 
+#[allow(clippy::too_many_arguments)]
 fn link_thread(
-    socket: &UdpSocket,
+    socket: Option<&UdpSocket>,
     telemetry: &[SocketAddr],
     screen: &Screen,
     mut rx: rtrb::Producer<u8>,
     mut tx: rtrb::Consumer<u8>,
     io: &LinkIo,
     stop: &AtomicBool,
+    hook: Option<&crate::mavlink::LinkHook>,
 ) {
     let mut buf = [0u8; MAX_DATAGRAM + 1];
     let mut last_sender: Option<SocketAddr> = None;
     let mut shares = SourceShares::new();
     loop {
         let stopping = stop.load(Ordering::Acquire);
+        // MAVLink's commands: made and signed in this process, queued as they are.
+        while let Some(datagram) = hook.and_then(|h| h.commands.try_recv().ok()) {
+            match (
+                u16::try_from(datagram.len()),
+                rx.write_chunk_uninit(2 + datagram.len()),
+            ) {
+                (Ok(len), Ok(chunk)) => {
+                    chunk.fill_from_iter(len.to_le_bytes().into_iter().chain(datagram));
+                }
+                _ => {
+                    io.dropped.fetch_add(1, Ordering::Relaxed);
+                }
+            }
+        }
+        if socket.is_none() {
+            // No socket to wait on: pace the loop as the socket's read timeout would.
+            std::thread::sleep(Duration::from_millis(5));
+        }
         for _ in 0..RECEIVE_BATCH {
-            let Ok((n, from)) = socket.recv_from(&mut buf) else {
+            let Some(Ok((n, from))) = socket.map(|s| s.recv_from(&mut buf)) else {
                 break;
             };
             io.datagrams_in.fetch_add(1, Ordering::Relaxed);
@@ -232,6 +278,10 @@ fn link_thread(
             datagram.extend_from_slice(a);
             datagram.extend_from_slice(b);
             body.commit_all();
+            if let Some(hook) = hook {
+                hook.offer(&datagram);
+            }
+            let Some(socket) = socket else { continue };
             let replies = last_sender.filter(|s| reply && !telemetry.contains(s));
             for to in telemetry.iter().chain(replies.iter()) {
                 match socket.send_to(&datagram, to) {
@@ -257,19 +307,19 @@ const SOURCES_KEPT: usize = 256;
 /// A token bucket per source address, so one sender cannot starve the others. (A forger
 /// who spoofs the ground's own address and port shares its bucket: UDP cannot tell them
 /// apart; the HMAC still refuses every forgery.)
-struct SourceShares {
+pub(crate) struct SourceShares {
     buckets: std::collections::HashMap<SocketAddr, (f64, Instant)>,
 }
 
 impl SourceShares {
-    fn new() -> Self {
+    pub(crate) fn new() -> Self {
         Self {
             buckets: std::collections::HashMap::new(),
         }
     }
 
     /// Whether `from` may have one more datagram read now.
-    fn take(&mut self, from: SocketAddr, now: Instant) -> bool {
+    pub(crate) fn take(&mut self, from: SocketAddr, now: Instant) -> bool {
         if !self.buckets.contains_key(&from) && self.buckets.len() >= SOURCES_KEPT {
             let oldest = self
                 .buckets

@@ -48,6 +48,12 @@ pub fn read_text(path: &Path, what: &str, limit: u64) -> Result<String, String> 
 /// group or others may read it (whoever reads the key can fly the airplane). The one reader
 /// of key files for the vehicle, the ground station and the horizon sender.
 pub fn read_key_file(path: &Path) -> Result<LinkKey, String> {
+    read_key_bytes(path).map(LinkKey::new)
+}
+
+/// [`read_key_file`]'s 32 bytes, for secrets used outside the skyframe link (MAVLink's
+/// signing key, `--mavlink-key`): the same file rules.
+pub fn read_key_bytes(path: &Path) -> Result<[u8; 32], String> {
     use std::os::unix::fs::PermissionsExt;
     let mode = std::fs::metadata(path)
         .map_err(|e| format!("key {}: {e}", path.display()))?
@@ -65,12 +71,28 @@ pub fn read_key_file(path: &Path) -> Result<LinkKey, String> {
         .strip_suffix(b"\r\n")
         .or_else(|| bytes.strip_suffix(b"\n"))
         .unwrap_or(&bytes);
-    if let Some(key) = std::str::from_utf8(text).ok().and_then(LinkKey::from_hex) {
+    if let Some(key) = hex_key(text) {
         return Ok(key);
     }
     <[u8; 32]>::try_from(bytes.as_slice())
-        .map(LinkKey::new)
         .map_err(|_| format!("key {}: not 64 hex digits or 32 bytes", path.display()))
+}
+
+/// Exactly 64 hex digits (either case).
+fn hex_key(text: &[u8]) -> Option<[u8; 32]> {
+    if text.len() != 64 {
+        return None;
+    }
+    let digit = |c: u8| {
+        char::from(c)
+            .to_digit(16)
+            .and_then(|d| u8::try_from(d).ok())
+    };
+    let mut key = [0u8; 32];
+    for (byte, pair) in key.iter_mut().zip(text.chunks_exact(2)) {
+        *byte = digit(*pair.first()?)? << 4 | digit(*pair.get(1)?)?;
+    }
+    Some(key)
 }
 
 fn size_text(bytes: u64) -> String {
