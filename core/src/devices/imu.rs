@@ -60,6 +60,27 @@ pub struct ImuMeasurement {
     pub status: ImuStatus,
 }
 
+/// The period of the IMU's frames, which its 8-bit counter counts.
+pub const IMU_FRAME_PERIOD_S: f64 = 0.01;
+/// The longest gap (in frames) the counter measures; longer gaps are timed by the receive
+/// times (the counter may have wrapped).
+pub const MAX_COUNTED_GAP: u8 = 10;
+
+/// The time step from the previous sample `(counter, received_ns)` to this one: from the
+/// frame counter, so scheduling jitter does not enter the integration, or from the receive
+/// times for a gap the counter cannot measure. `None`: the same frame again (nothing new).
+/// The one rule for the estimator task, replay and the scoring tools.
+pub fn imu_step_s(previous: Option<(u8, u64)>, counter: u8, received_ns: u64) -> Option<f64> {
+    match previous {
+        Some((last, _)) if last == counter => None,
+        Some((last, _)) if counter.wrapping_sub(last) <= MAX_COUNTED_GAP => {
+            Some(f64::from(counter.wrapping_sub(last)) * IMU_FRAME_PERIOD_S)
+        }
+        Some((_, last_ns)) => Some(received_ns.saturating_sub(last_ns) as f64 * 1e-9),
+        None => Some(IMU_FRAME_PERIOD_S),
+    }
+}
+
 /// A decoded fast frame.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -447,3 +468,22 @@ const _: () = assert!(IMU_FRAME_LEN <= MAX_FRAME_LEN);
 
 #[cfg(test)]
 mod tests;
+
+#[cfg(test)]
+mod step_tests {
+    use super::*;
+
+    #[test]
+    fn the_counter_times_short_gaps_and_the_clock_long_ones() {
+        assert_eq!(imu_step_s(None, 7, 0), Some(0.01));
+        assert_eq!(imu_step_s(Some((7, 0)), 7, 5_000_000), None);
+        assert_eq!(imu_step_s(Some((7, 0)), 8, 13_000_000), Some(0.01));
+        // Wrapping: 255 → 2 is three frames.
+        assert_eq!(imu_step_s(Some((255, 0)), 2, 0), Some(0.03));
+        // Eleven frames: the counter may have wrapped, the receive times decide.
+        assert_eq!(
+            imu_step_s(Some((0, 1_000_000_000)), 11, 1_250_000_000),
+            Some(0.25)
+        );
+    }
+}

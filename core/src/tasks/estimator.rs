@@ -12,7 +12,7 @@
 use super::task_log::TaskLog;
 use crate::comm::{LatestSlot, SlotReader};
 use crate::devices::gps::GpsFix;
-use crate::devices::imu::ImuSample;
+use crate::devices::imu::{ImuSample, imu_step_s};
 use crate::estimation::{Estimate, Estimator, EstimatorConfig, HealthReason, Phase};
 use crate::executive::{Task, TaskContext, TaskFault};
 use crate::horizon::HorizonAttitude;
@@ -96,8 +96,6 @@ pub const STATE_INDEX: u8 = 1;
 pub const HEALTH_INDEX: u8 = 2;
 pub const SD_INDEX: u8 = 3;
 
-/// The IMU frame period the counter counts.
-pub const IMU_PERIOD_S: f64 = 0.01;
 /// Steps without a fresh IMU sample before the estimate is marked unhealthy.
 pub const IMU_TIMEOUT_STEPS: u32 = 5;
 const HEALTH_LOG_INTERVAL_NS: u64 = 1_000_000_000;
@@ -165,18 +163,10 @@ impl<'a, S: RecordSink> EstimatorTask<'a, S> {
             return;
         };
         self.steps_without_imu = 0;
-        let dt = match self.last_imu {
-            Some((counter, _)) if sample.counter == counter => {
-                // The same frame again (a repeated publication): nothing new.
-                return;
-            }
-            Some((counter, _)) if sample.counter.wrapping_sub(counter) <= 10 => {
-                f64::from(sample.counter.wrapping_sub(counter)) * IMU_PERIOD_S
-            }
-            // A gap the counter cannot measure: the receive times can (the filter refuses
-            // steps over 0.1 s).
-            Some((_, received)) => sample.received_ns.saturating_sub(received) as f64 * 1e-9,
-            None => IMU_PERIOD_S,
+        // A repeated publication of the same frame is nothing new; a gap the counter cannot
+        // measure is timed by the receive times (the filter refuses steps over 0.1 s).
+        let Some(dt) = imu_step_s(self.last_imu, sample.counter, sample.received_ns) else {
+            return;
         };
         self.last_imu = Some((sample.counter, sample.received_ns));
         let m = sample.measurement;

@@ -3,6 +3,7 @@
 //! replayed through the same `Estimator` the task runs, each step timed with the host's
 //! monotonic clock.
 
+use skyframe_core::devices::imu::imu_step_s;
 use std::time::Instant;
 
 use serde::Serialize;
@@ -25,32 +26,24 @@ pub struct StepTime {
     pub build: &'static str,
 }
 
-/// The IMU period the task assumes between consecutive counters (`core/src/tasks/estimator.rs`).
-const IMU_PERIOD_S: f64 = 0.01;
-
 pub fn time_estimator(imu: &Table, fixes: &[GpsFix], budget_ns: u64) -> Result<StepTime, String> {
     let c = |name| column(imu, "imu", name);
     let (counter, p, q, r) = (c("counter")?, c("p_rad_s")?, c("q_rad_s")?, c("r_rad_s")?);
     let (fx, fy, fz) = (c("fx_m_s2")?, c("fy_m_s2")?, c("fz_m_s2")?);
     let mut estimator = Estimator::new(EstimatorConfig::default());
     let mut next_fix = fixes.iter().peekable();
-    let mut last: Option<(f64, i64)> = None;
+    let mut last: Option<(u8, u64)> = None;
     let mut durations_ns: Vec<u64> = Vec::with_capacity(imu.times_ns.len());
     for (i, &t) in imu.times_ns.iter().enumerate() {
         let at = |col: &[f64]| col.get(i).copied().unwrap_or(f64::NAN);
-        let count = at(counter);
-        // As the task does: a repeated counter is the same sample; a gap of up to 10 samples
-        // is measured by the counter, longer ones by the receive times.
-        let dt = match last {
-            Some((prev, _)) if prev == count => continue,
-            Some((prev, _)) if (count - prev).rem_euclid(256.0) <= 10.0 => {
-                (count - prev).rem_euclid(256.0) * IMU_PERIOD_S
-            }
-            Some((_, prev_t)) => (t - prev_t) as f64 * 1e-9,
-            None => IMU_PERIOD_S,
-        };
-        last = Some((count, t));
+        // The logged counter is a %hhu column: a whole number 0..=255.
+        let count = at(counter) as u8;
         let t_ns = u64::try_from(t).unwrap_or(0);
+        // As the task does (one rule, `imu_step_s`).
+        let Some(dt) = imu_step_s(last, count, t_ns) else {
+            continue;
+        };
+        last = Some((count, t_ns));
         let rates = [at(p) as f32, at(q) as f32, at(r) as f32];
         let force = [at(fx) as f32, at(fy) as f32, at(fz) as f32];
         let start = Instant::now();
