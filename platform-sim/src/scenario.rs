@@ -13,7 +13,7 @@ use crate::pilot::{Direction, Manoeuvre, Pilot, PilotConfig, Runway, SwitchPosit
 use crate::plant::trim::trim_level_flight;
 use crate::plant::{
     ActuatorCommands, AircraftParams, DrydenParams, GpsConfig, InitialState, Plant, PlantConfig,
-    Truth, WindConfig,
+    PlantKind, Truth, WindConfig,
 };
 use crate::servo_board::{OutputSource, PilotInput, ServoBoard};
 use serde::Deserialize;
@@ -62,6 +62,7 @@ struct RawScenario {
     wind: Option<Spanned<RawWind>>,
     gps: Option<Spanned<RawGps>>,
     runway: Option<Spanned<RawRunway>>,
+    plant: Option<Spanned<RawPlant>>,
     #[serde(default)]
     timeline: Vec<Spanned<RawTimelineEntry>>,
     #[serde(default)]
@@ -92,6 +93,14 @@ struct RawWind {
 #[serde(deny_unknown_fields)]
 struct RawGps {
     preset: String,
+}
+
+/// `[plant]`: which flight model flies, and which aircraft.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawPlant {
+    kind: String,
+    aircraft: Option<String>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -292,6 +301,8 @@ pub struct Scenario {
     pub gps: GpsPreset,
     /// Where approaches and landings go.
     pub runway: Runway,
+    /// The flight model and aircraft (`[plant]`; default the built-in Aerosonde).
+    pub plant: PlantKind,
     /// In time order.
     pub timeline: Vec<TimelineEntry>,
     /// In start-time order.
@@ -578,6 +589,29 @@ impl Scenario {
         }
         faults.sort_by(|a, b| a.t_s.total_cmp(&b.t_s));
 
+        let plant = match &raw.plant {
+            None => PlantKind::BuiltIn,
+            Some(s) => {
+                let p = s.get_ref();
+                let aircraft = p.aircraft.as_deref();
+                if aircraft.is_some_and(|a| {
+                    a.is_empty()
+                        || !a
+                            .chars()
+                            .all(|c| c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.'))
+                }) {
+                    return Err(loc.key(
+                        &s.span(),
+                        "aircraft",
+                        "plant: `aircraft` must be a name of letters, digits, '-', '_' or '.'"
+                            .into(),
+                    ));
+                }
+                PlantKind::from_names(&p.kind, aircraft)
+                    .map_err(|e| loc.key(&s.span(), "kind", format!("plant: {e}")))?
+            }
+        };
+
         Ok(Self {
             seed: raw.seed.unwrap_or(DEFAULT_SEED),
             duration_s,
@@ -586,6 +620,7 @@ impl Scenario {
             turbulence,
             gps,
             runway,
+            plant,
             timeline,
             faults,
         })
@@ -1285,6 +1320,11 @@ impl ScenarioPilot {
 
     pub fn pilot(&self) -> &Pilot {
         &self.pilot
+    }
+
+    /// See [`Pilot::retrim`].
+    pub fn retrim(&mut self, trim: ActuatorCommands, trim_pitch_rad: f64, cruise_airspeed_mps: f64) {
+        self.pilot.retrim(trim, trim_pitch_rad, cruise_airspeed_mps);
     }
 }
 

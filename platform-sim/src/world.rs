@@ -11,9 +11,12 @@
 
 use crate::pilot::SwitchPosition;
 use crate::plant::sensors::{GpsFixType, GpsSample};
-use crate::plant::{ActuatorCommands, GeodeticPosition, Plant, Truth};
+use crate::plant::jsbsim::{JsbsimConfig, JsbsimModel, JsbsimStart};
+use crate::plant::{
+    ActuatorCommands, FlightModel, GeodeticPosition, Plant, PlantError, PlantKind, Truth,
+};
 pub use crate::scenario::Device;
-use crate::scenario::{Fault, FaultKind, Scenario, ScenarioPilot};
+use crate::scenario::{Fault, FaultKind, InitialCondition, Scenario, ScenarioPilot};
 use crate::servo_board::{OutputSource, PilotInput, ServoBoard};
 use skyframe_core::devices::gps::{
     FixDimension, FixQuality, GpsFix, SentenceKind, Talker, encode_sentence,
@@ -119,8 +122,11 @@ pub struct WorldStats {
     pub computer_steps: u64,
 }
 
+/// The airplane whichever flight model flies it.
+pub type AnyPlant = Plant<Box<dyn FlightModel>>;
+
 pub struct SimWorld {
-    plant: Plant,
+    plant: AnyPlant,
     transmitter: Box<dyn Transmitter + Send>,
     board: ServoBoard,
     imu: ImuStreamEncoder,
@@ -138,7 +144,11 @@ pub struct SimWorld {
 }
 
 impl SimWorld {
-    pub fn new(plant: Plant, transmitter: Box<dyn Transmitter + Send>) -> Self {
+    pub fn new<M: FlightModel + 'static>(
+        plant: Plant<M>,
+        transmitter: Box<dyn Transmitter + Send>,
+    ) -> Self {
+        let plant = plant.boxed();
         let start = plant.time_ns();
         Self {
             plant,
@@ -158,16 +168,56 @@ impl SimWorld {
         }
     }
 
-    /// The world of a scenario: its airplane, wind, GPS, pilot and faults; `seed` overrides
-    /// the scenario's.
-    pub fn from_scenario(scenario: &Scenario, seed: Option<u64>) -> Self {
+    /// The world of a scenario: its airplane (on the scenario's plant), wind, GPS, pilot and
+    /// faults; `seed` overrides the scenario's. Fails only when JSBSim cannot start.
+    pub fn from_scenario(scenario: &Scenario, seed: Option<u64>) -> Result<Self, PlantError> {
+        Self::from_scenario_on(scenario, seed, &scenario.plant)
+    }
+
+    /// [`from_scenario`](Self::from_scenario) on `plant` instead of the scenario's.
+    pub fn from_scenario_on(
+        scenario: &Scenario,
+        seed: Option<u64>,
+        plant: &PlantKind,
+    ) -> Result<Self, PlantError> {
+        let seed = seed.unwrap_or(scenario.seed);
         let config = scenario.plant_config();
-        let initial = scenario.initial_state(&config.params);
-        let pilot = ScenarioPilot::new(scenario, &config.params);
-        let plant = Plant::with_config(config, initial, seed.unwrap_or(scenario.seed));
+        let (plant, pilot) = match plant {
+            PlantKind::BuiltIn => {
+                let initial = scenario.initial_state(&config.params);
+                let pilot = ScenarioPilot::new(scenario, &config.params);
+                (Plant::with_config(config, initial, seed).boxed(), pilot)
+            }
+            PlantKind::Jsbsim { aircraft } => {
+                let start = match scenario.initial {
+                    InitialCondition::OnRunway { heading_rad } => {
+                        JsbsimStart::OnRunway { heading_rad }
+                    }
+                    InitialCondition::InFlight {
+                        altitude_m,
+                        airspeed_mps,
+                        heading_rad,
+                    } => JsbsimStart::InFlight {
+                        altitude_m,
+                        airspeed_mps,
+                        heading_rad,
+                    },
+                };
+                let model = JsbsimModel::start(JsbsimConfig::new(aircraft), &config, start, seed)?;
+                let mut pilot = ScenarioPilot::new(scenario, &config.params);
+                if let (Some(trim), InitialCondition::InFlight { airspeed_mps, .. }) =
+                    (model.trim(), scenario.initial)
+                {
+                    // The scripted pilot knows the Aerosonde; on another airplane it flies
+                    // from the trim JSBSim found, at the scenario's airspeed.
+                    pilot.retrim(trim, model.truth().pitch_rad, airspeed_mps);
+                }
+                (Plant::with_model(config, model, seed).boxed(), pilot)
+            }
+        };
         let mut world = Self::new(plant, Box::new(pilot));
         world.scheduled_faults = scenario.faults.clone();
-        world
+        Ok(world)
     }
 
     pub fn truth(&self) -> Truth {
@@ -224,7 +274,13 @@ impl SimWorld {
             if source == OutputSource::Computer {
                 self.stats.computer_steps += 1;
             }
-            self.plant.step(PLANT_STEP_NS as f64 * 1e-9, &actuators);
+            if let Err(e) = self.plant.try_step(PLANT_STEP_NS as f64 * 1e-9, &actuators) {
+                // The airplane is gone (JSBSim's process died or talks garbage): nothing can
+                // fly on. The logs hold everything up to now (they survive `kill -9` by
+                // design), so stop here with one line rather than hang the executive.
+                eprintln!("skyframe: the simulated airplane stopped: {e}");
+                std::process::exit(3);
+            }
             let now = self.plant.time_ns();
             if now >= self.next_imu_ns {
                 self.next_imu_ns += IMU_PERIOD_NS;

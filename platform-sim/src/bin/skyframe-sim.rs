@@ -108,7 +108,7 @@ fn run(args: Args) -> Result<(), String> {
         None => Scenario::parse(DEFAULT_SCENARIO),
     }
     .map_err(|e| e.to_string())?;
-    let mut world = SimWorld::from_scenario(&scenario, args.seed);
+    let mut world = SimWorld::from_scenario(&scenario, args.seed).map_err(|e| e.to_string())?;
     let (imu, imu_path) = pty()?;
     let (gps, gps_path) = pty()?;
     let (servo, servo_path) = pty()?;
