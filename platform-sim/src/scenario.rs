@@ -101,6 +101,7 @@ struct RawGps {
 struct RawPlant {
     kind: String,
     aircraft: Option<String>,
+    cruise_airspeed_mps: Option<f64>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -303,6 +304,9 @@ pub struct Scenario {
     pub runway: Runway,
     /// The flight model and aircraft (`[plant]`; default the built-in Aerosonde).
     pub plant: PlantKind,
+    /// The scripted pilot's cruise speed on the scenario's aircraft (`[plant]`), when it is not
+    /// the Aerosonde's: the pilot flies from the trim the plant finds there.
+    pub pilot_cruise_airspeed_mps: Option<f64>,
     /// In time order.
     pub timeline: Vec<TimelineEntry>,
     /// In start-time order.
@@ -589,9 +593,21 @@ impl Scenario {
         }
         faults.sort_by(|a, b| a.t_s.total_cmp(&b.t_s));
 
+        let mut pilot_cruise_airspeed_mps = None;
         let plant = match &raw.plant {
             None => PlantKind::BuiltIn,
             Some(s) => {
+                if let Some(v) = s.get_ref().cruise_airspeed_mps {
+                    pilot_cruise_airspeed_mps = Some(in_range(
+                        &loc,
+                        &s.span(),
+                        "plant",
+                        "cruise_airspeed_mps",
+                        v,
+                        10.0,
+                        100.0,
+                    )?);
+                }
                 let p = s.get_ref();
                 let aircraft = p.aircraft.as_deref();
                 if aircraft.is_some_and(|a| {
@@ -621,6 +637,7 @@ impl Scenario {
             gps,
             runway,
             plant,
+            pilot_cruise_airspeed_mps,
             timeline,
             faults,
         })
@@ -1021,7 +1038,8 @@ fn parse_manoeuvre(
                 "rotate_speed_mps",
                 raw.rotate_speed_mps.unwrap_or(18.0),
                 14.0,
-                25.0,
+                // Up to a light airplane's on JSBSim (a 172 rotates at about 28 m/s).
+                40.0,
             )?,
             climb_pitch_rad: deg(
                 "climb_pitch_deg",

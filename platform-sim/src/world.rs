@@ -203,14 +203,20 @@ impl SimWorld {
                         heading_rad,
                     },
                 };
-                let model = JsbsimModel::start(JsbsimConfig::new(aircraft), &config, start, seed)?;
+                let cruise = match scenario.initial {
+                    InitialCondition::InFlight { airspeed_mps, .. } => Some(airspeed_mps),
+                    InitialCondition::OnRunway { .. } => scenario.pilot_cruise_airspeed_mps,
+                };
+                let jsbsim = JsbsimConfig {
+                    trim_airspeed_mps: cruise,
+                    ..JsbsimConfig::new(aircraft)
+                };
+                let model = JsbsimModel::start(jsbsim, &config, start, seed)?;
                 let mut pilot = ScenarioPilot::new(scenario, &config.params);
-                if let (Some(trim), InitialCondition::InFlight { airspeed_mps, .. }) =
-                    (model.trim(), scenario.initial)
-                {
+                if let (Some((trim, pitch)), Some(cruise)) = (model.trim(), cruise) {
                     // The scripted pilot knows the Aerosonde; on another airplane it flies
-                    // from the trim JSBSim found, at the scenario's airspeed.
-                    pilot.retrim(trim, model.truth().pitch_rad, airspeed_mps);
+                    // from the trim JSBSim found, at the scenario's cruise speed.
+                    pilot.retrim(trim, pitch, cruise);
                 }
                 (Plant::with_model(config, model, seed).boxed(), pilot)
             }

@@ -71,6 +71,40 @@ OUT_PROPS = [
 OUT = struct.Struct("<%dd" % len(OUT_PROPS))
 
 
+def set_ic(fdm, heading_deg, height_m, airspeed_mps):
+    fdm["ic/psi-true-deg"] = heading_deg
+    fdm["ic/h-agl-ft"] = height_m / FT
+    fdm["ic/vt-fps"] = airspeed_mps / FT
+    fdm["ic/gamma-deg"] = 0.0
+
+
+def trimmed(fdm, cfg, heading_deg, height_m, airspeed_mps):
+    """Trims level flight; returns ([aileron, elevator, rudder, throttle], pitch) in our signs,
+    with the trim moved from the pitch-trim wheel onto the elevator (which is what skyframe
+    commands), so the first command keeps the airplane trimmed."""
+    set_ic(fdm, heading_deg, height_m, airspeed_mps)
+    if not fdm.run_ic():
+        fail("JSBSim refused the initial conditions")
+    fdm["propulsion/set-running"] = -1
+    fdm["fcs/mixture-cmd-norm"] = 1.0
+    fdm["fcs/throttle-cmd-norm"] = 0.6
+    try:
+        fdm.do_trim(1)
+    except Exception as e:  # noqa: BLE001 - JSBSim's trim failure type varies by version
+        fail(f"JSBSim cannot trim {cfg['aircraft']} at {airspeed_mps} m/s: {e}")
+    pitch = fdm["fcs/pitch-trim-cmd-norm"] + fdm["fcs/elevator-cmd-norm"]
+    fdm["fcs/pitch-trim-cmd-norm"] = 0.0
+    fdm["fcs/elevator-cmd-norm"] = pitch
+    # JSBSim: positive elevator pitches down and positive rudder yaws left.
+    commands = [
+        fdm["fcs/aileron-cmd-norm"],
+        -pitch,
+        -fdm["fcs/rudder-cmd-norm"],
+        fdm["fcs/throttle-cmd-norm"],
+    ]
+    return commands, fdm["attitude/theta-rad"]
+
+
 def main():
     line = sys.stdin.readline()
     if not line:
@@ -92,39 +126,39 @@ def main():
     fdm["ic/lat-geod-deg"] = cfg["lat_deg"]
     fdm["ic/long-gc-deg"] = cfg["lon_deg"]
     fdm["ic/terrain-elevation-ft"] = cfg["ground_msl_m"] / FT
-    fdm["ic/psi-true-deg"] = init["heading_deg"]
-    flying = init["kind"] == "flight"
-    if flying:
-        fdm["ic/h-agl-ft"] = init["altitude_m"] / FT
-        fdm["ic/vt-fps"] = init["airspeed_mps"] / FT
-    else:
-        fdm["ic/h-agl-ft"] = 0.0
-        fdm["ic/vt-fps"] = 0.0
-    if not fdm.run_ic():
-        fail("JSBSim refused the initial conditions")
-    fdm["propulsion/set-running"] = -1
-    fdm["fcs/mixture-cmd-norm"] = 1.0
-    trim = [0.0, 0.0, 0.0, 0.0]
-    if flying:
-        fdm["fcs/throttle-cmd-norm"] = 0.6
-        try:
-            fdm.do_trim(1)
-        except Exception as e:  # noqa: BLE001
-            fail(f"JSBSim cannot trim {cfg['aircraft']} at {init['airspeed_mps']} m/s: {e}")
-        # The trim lands in the pitch-trim wheel; move it onto the elevator, which is what
-        # skyframe commands, so the first command (the trim) keeps the airplane trimmed.
-        pitch = fdm["fcs/pitch-trim-cmd-norm"] + fdm["fcs/elevator-cmd-norm"]
+    trim = None
+    trim_speed = init["airspeed_mps"] if init["kind"] == "flight" else cfg.get("trim_airspeed_mps")
+    if trim_speed:
+        # Level flight at that speed, trimmed by JSBSim: the commands a pilot flies from.
+        trim = trimmed(fdm, cfg, init["heading_deg"], max(init["altitude_m"], 100.0), trim_speed)
+    t0 = 0.0
+    if init["kind"] != "flight":
+        # JSBSim places the CG, not the wheels: find the height where the lowest wheel just
+        # touches, then let the airplane settle on its gear (brakes on, idle) before time zero.
+        set_ic(fdm, init["heading_deg"], 10.0 * FT, 0.0)
+        if not fdm.run_ic():
+            fail("JSBSim refused the initial conditions")
+        pm = fdm.get_property_manager()
+        wheels = [pm.get_node(f"gear/unit[{i}]/AGL-ft", False) for i in range(int(fdm["gear/num-units"]))]
+        heights = [w.get_double_value() for w in wheels if w is not None]
+        lowest_ft = min(heights) if heights else 0.0
+        set_ic(fdm, init["heading_deg"], (10.0 - lowest_ft) * FT + 0.01, 0.0)
+        if not fdm.run_ic():
+            fail("JSBSim refused the initial conditions")
+        fdm["propulsion/set-running"] = -1
+        fdm["fcs/mixture-cmd-norm"] = 1.0
+        fdm["fcs/throttle-cmd-norm"] = 0.0
+        fdm["fcs/elevator-cmd-norm"] = 0.0
         fdm["fcs/pitch-trim-cmd-norm"] = 0.0
-        fdm["fcs/elevator-cmd-norm"] = pitch
-        # JSBSim: positive elevator pitches down and positive rudder yaws left.
-        trim = [
-            fdm["fcs/aileron-cmd-norm"],
-            -pitch,
-            -fdm["fcs/rudder-cmd-norm"],
-            fdm["fcs/throttle-cmd-norm"],
-        ]
+        fdm["fcs/left-brake-cmd-norm"] = 1.0
+        fdm["fcs/right-brake-cmd-norm"] = 1.0
+        for _ in range(int(round(3.0 / cfg["dt_s"]))):
+            fdm.run()
+        t0 = fdm["simulation/sim-time-sec"]
     out = PROTOCOL
     hello = {"ok": True, "version": jsbsim.__version__, "trim": trim}
+    if trim is not None:
+        hello["trim"], hello["trim_pitch_rad"] = trim
     out.write((json.dumps(hello) + "\n").encode())
     inp = sys.stdin.buffer
     props = [fdm.get_property_manager().get_node(p, False) for p in OUT_PROPS]
@@ -148,7 +182,14 @@ def main():
         for _ in range(int(frames)):
             if not fdm.run():
                 fail("JSBSim stopped")
-        out.write(OUT.pack(*[n.get_double_value() for n in props]))
+        values = [n.get_double_value() for n in props]
+        values[-1] -= t0
+        out.write(OUT.pack(*values))
 
 
-main()
+try:
+    main()
+except SystemExit:
+    raise
+except BaseException as e:  # noqa: BLE001 - whatever JSBSim throws ends the run in one line
+    fail(f"{type(e).__name__}: {e}")

@@ -68,6 +68,9 @@ pub struct JsbsimConfig {
     pub frame_s: f64,
     /// The Python interpreter with the `jsbsim` package.
     pub python: String,
+    /// On a runway start, JSBSim also trims level flight at this airspeed first, for the
+    /// pilot's trim ([`JsbsimModel::trim`]); an in-flight start trims at its own speed.
+    pub trim_airspeed_mps: Option<f64>,
 }
 
 impl JsbsimConfig {
@@ -81,6 +84,7 @@ impl JsbsimConfig {
             root,
             frame_s: 0.005,
             python: std::env::var("SKYFRAME_PYTHON").unwrap_or_else(|_| "python3".into()),
+            trim_airspeed_mps: None,
         }
     }
 }
@@ -141,8 +145,8 @@ pub struct JsbsimModel {
     wind: wind::WindModel,
     commands: ActuatorCommands,
     truth: Truth,
-    /// The commands JSBSim trimmed the airplane with (in-flight starts).
-    trim: Option<ActuatorCommands>,
+    /// Level-flight trim JSBSim found: commands and pitch (rad).
+    trim: Option<(ActuatorCommands, f64)>,
     version: String,
 }
 
@@ -177,7 +181,8 @@ impl JsbsimModel {
         let hello = format!(
             "{{\"aircraft\": {}, \"root\": {}, \"dt_s\": {}, \"lat_deg\": {}, \"lon_deg\": {}, \
              \"ground_msl_m\": {}, \"initial\": {{\"kind\": \"{kind}\", \"heading_deg\": {}, \
-             \"altitude_m\": {altitude_m}, \"airspeed_mps\": {airspeed_mps}}}}}\n",
+             \"altitude_m\": {altitude_m}, \"airspeed_mps\": {airspeed_mps}}}, \
+             \"trim_airspeed_mps\": {}}}\n",
             json_string(&config.aircraft),
             config
                 .root
@@ -188,6 +193,10 @@ impl JsbsimModel {
             home.lon_deg,
             home.alt_msl_m,
             heading_rad.to_degrees(),
+            config
+                .trim_airspeed_mps
+                .filter(|v| v.is_finite())
+                .map_or("null".to_string(), |v| v.to_string()),
         );
         let mut child = spawn(&config)?;
         child
@@ -216,12 +225,17 @@ impl JsbsimModel {
                 }
             ))
         })?;
-        let trim = trim.map(|[aileron, elevator, rudder, throttle]| ActuatorCommands {
-            aileron,
-            elevator,
-            rudder,
-            throttle,
-            brake: 0.0,
+        let trim = trim.map(|([aileron, elevator, rudder, throttle], pitch)| {
+            (
+                ActuatorCommands {
+                    aileron,
+                    elevator,
+                    rudder,
+                    throttle,
+                    brake: 0.0,
+                },
+                pitch,
+            )
         });
         let mut model = Self {
             wind: wind::WindModel::new(plant.wind, NoiseRng::new(seed, stream::WIND)),
@@ -232,9 +246,12 @@ impl JsbsimModel {
             frame_ns,
             frame_time_ns: 0,
             frames_run: 0,
-            commands: trim.unwrap_or_default(),
+            commands: match (start, trim) {
+                (JsbsimStart::InFlight { .. }, Some((commands, _))) => commands,
+                _ => ActuatorCommands::default(),
+            },
             truth: Truth::at_rest(),
-            trim: matches!(start, JsbsimStart::InFlight { .. }).then_some(trim).flatten(),
+            trim,
             version,
         };
         // The state JSBSim starts in, without running it.
@@ -242,8 +259,9 @@ impl JsbsimModel {
         Ok(model)
     }
 
-    /// The commands JSBSim trimmed the airplane with, for an in-flight start.
-    pub fn trim(&self) -> Option<ActuatorCommands> {
+    /// The level-flight trim JSBSim found (commands, pitch in rad): for an in-flight start at
+    /// its speed, else at [`JsbsimConfig::trim_airspeed_mps`].
+    pub fn trim(&self) -> Option<(ActuatorCommands, f64)> {
         self.trim
     }
 
@@ -434,15 +452,19 @@ fn json_string(s: &str) -> String {
     out
 }
 
-/// The driver's first line: `{"ok": true, "version": …, "trim": [a, e, r, t]}` or
+/// The driver's first line: `{"ok": true, "version": …, "trim": [a, e, r, t],
+/// "trim_pitch_rad": …}` (trim when asked for) or
 /// `{"error": …}`.
-fn parse_hello(line: &str) -> Result<(String, Option<[f64; 4]>), String> {
+type TrimValues = ([f64; 4], f64);
+
+fn parse_hello(line: &str) -> Result<(String, Option<TrimValues>), String> {
     #[derive(serde::Deserialize)]
     struct Hello {
         ok: Option<bool>,
         error: Option<String>,
         version: Option<String>,
         trim: Option<[f64; 4]>,
+        trim_pitch_rad: Option<f64>,
     }
     let hello: Hello = serde_json::from_str(line.trim()).map_err(|_| {
         let shown: String = line.trim().chars().take(80).collect();
@@ -454,7 +476,8 @@ fn parse_hello(line: &str) -> Result<(String, Option<[f64; 4]>), String> {
     if hello.ok != Some(true) {
         return Err("JSBSim's driver did not say it was ready".into());
     }
-    Ok((hello.version.unwrap_or_default(), hello.trim))
+    let trim = hello.trim.zip(hello.trim_pitch_rad);
+    Ok((hello.version.unwrap_or_default(), trim))
 }
 
 fn spawn(config: &JsbsimConfig) -> Result<Driver, PlantError> {
