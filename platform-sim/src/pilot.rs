@@ -288,7 +288,12 @@ impl Pilot {
     /// Flies from `trim` (commands for level flight at `cruise_airspeed_mps`, pitch
     /// `trim_pitch_rad`) instead of the Aerosonde's: another airplane's trim (JSBSim's).
     /// The speeds the pilot keeps scale with the cruise speed.
-    pub fn retrim(&mut self, trim: ActuatorCommands, trim_pitch_rad: f64, cruise_airspeed_mps: f64) {
+    pub fn retrim(
+        &mut self,
+        trim: ActuatorCommands,
+        trim_pitch_rad: f64,
+        cruise_airspeed_mps: f64,
+    ) {
         let k = cruise_airspeed_mps / self.config.cruise_airspeed_mps;
         self.config.cruise_airspeed_mps = cruise_airspeed_mps;
         self.config.approach_airspeed_mps *= k;

@@ -1341,7 +1341,12 @@ impl ScenarioPilot {
     }
 
     /// See [`Pilot::retrim`].
-    pub fn retrim(&mut self, trim: ActuatorCommands, trim_pitch_rad: f64, cruise_airspeed_mps: f64) {
+    pub fn retrim(
+        &mut self,
+        trim: ActuatorCommands,
+        trim_pitch_rad: f64,
+        cruise_airspeed_mps: f64,
+    ) {
         self.pilot.retrim(trim, trim_pitch_rad, cruise_airspeed_mps);
     }
 }

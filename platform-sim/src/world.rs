@@ -10,8 +10,8 @@
 //! `skyframe-sim --pty`.
 
 use crate::pilot::SwitchPosition;
-use crate::plant::sensors::{GpsFixType, GpsSample};
 use crate::plant::jsbsim::{JsbsimConfig, JsbsimModel, JsbsimStart};
+use crate::plant::sensors::{GpsFixType, GpsSample};
 use crate::plant::{
     ActuatorCommands, FlightModel, GeodeticPosition, Plant, PlantError, PlantKind, Truth,
 };

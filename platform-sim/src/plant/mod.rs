@@ -396,11 +396,9 @@ impl<M: FlightModel> Plant<M> {
     pub fn sample_imu(&mut self) -> ImuSample {
         let t = self.time_s();
         let truth = self.model.truth();
-        self.sensors.imu.sample(
-            t,
-            truth.rates_body_radps,
-            truth.specific_force_body_mps2,
-        )
+        self.sensors
+            .imu
+            .sample(t, truth.rates_body_radps, truth.specific_force_body_mps2)
     }
 
     /// The oldest GPS solution delivered by now, if any; call until `None` to drain.

@@ -38,9 +38,8 @@ pub const LBF_N: f64 = 4.448_221_615_260_5;
 
 /// The fields of one frame, in `driver.py`'s `OUT_PROPS` order.
 const FIELDS: usize = 29;
-/// How long a frame (or the start, which loads the aircraft) may take before the child is
+/// How long the start (which loads the aircraft and trims) may take before the child is
 /// taken for hung.
-const FRAME_TIMEOUT: Duration = Duration::from_secs(10);
 const START_TIMEOUT: Duration = Duration::from_secs(60);
 
 /// Where JSBSim starts.
@@ -71,6 +70,8 @@ pub struct JsbsimConfig {
     /// On a runway start, JSBSim also trims level flight at this airspeed first, for the
     /// pilot's trim ([`JsbsimModel::trim`]); an in-flight start trims at its own speed.
     pub trim_airspeed_mps: Option<f64>,
+    /// A frame unanswered this long means the child hangs: the run ends with an error.
+    pub frame_timeout: Duration,
 }
 
 impl JsbsimConfig {
@@ -85,6 +86,7 @@ impl JsbsimConfig {
             frame_s: 0.005,
             python: std::env::var("SKYFRAME_PYTHON").unwrap_or_else(|_| "python3".into()),
             trim_airspeed_mps: None,
+            frame_timeout: Duration::from_secs(10),
         }
     }
 }
@@ -312,10 +314,7 @@ impl JsbsimModel {
                 .flatten()
                 .map(|s| format!(", {s}"))
                 .unwrap_or_default();
-            PlantError(format!(
-                "jsbsim: {what}{status}{}",
-                child.last_words()
-            ))
+            PlantError(format!("jsbsim: {what}{status}{}", child.last_words()))
         };
         if self
             .child
@@ -326,18 +325,24 @@ impl JsbsimModel {
         {
             return Err(dead(&mut self.child, "the JSBSim process is gone"));
         }
-        let frame = match self.child.frames.recv_timeout(FRAME_TIMEOUT) {
+        let frame = match self.child.frames.recv_timeout(self.config.frame_timeout) {
             Ok(Ok(frame)) => frame,
             Ok(Err(line)) => {
                 return Err(dead(
                     &mut self.child,
-                    &format!("JSBSim failed: {}", parse_hello(&line).err().unwrap_or(line)),
+                    &format!(
+                        "JSBSim failed: {}",
+                        parse_hello(&line).err().unwrap_or(line)
+                    ),
                 ));
             }
             Err(RecvTimeoutError::Timeout) => {
                 return Err(dead(
                     &mut self.child,
-                    &format!("no answer from JSBSim in {} s", FRAME_TIMEOUT.as_secs()),
+                    &format!(
+                        "no answer from JSBSim in {:.1} s",
+                        self.config.frame_timeout.as_secs_f64()
+                    ),
                 ));
             }
             Err(RecvTimeoutError::Disconnected) => {
@@ -547,7 +552,10 @@ fn spawn(config: &JsbsimConfig) -> Result<Driver, PlantError> {
                     let text = String::from_utf8_lossy(&buf).into_owned();
                     let mut rest = String::new();
                     let _ = reader.read_to_string(&mut rest);
-                    let all = format!("{text}{rest}").trim_matches('\0').trim().to_string();
+                    let all = format!("{text}{rest}")
+                        .trim_matches('\0')
+                        .trim()
+                        .to_string();
                     if !all.is_empty() {
                         let _ = tx.send(Err(all));
                     }
