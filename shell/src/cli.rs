@@ -533,16 +533,16 @@ fn run<P: Platform>(platform: &P, command: Command) -> Result<ExitCode, String> 
                 None => Scenario::parse(DEFAULT_SCENARIO),
             }
             .map_err(|e| e.to_string())?;
-            let plant = match (&args.plant, &args.aircraft) {
-                (None, None) => scenario.plant.clone(),
-                (plant, aircraft) => PlantKind::from_names(
-                    plant.as_deref().unwrap_or(scenario.plant.plant_name()),
-                    aircraft.as_deref().or(match &scenario.plant {
-                        PlantKind::Jsbsim { aircraft } => Some(aircraft.as_str()),
-                        PlantKind::BuiltIn => None,
-                    }),
-                )?,
-            };
+            // --plant and --aircraft override the scenario's `[plant]`; the scenario's
+            // aircraft stays only when the plant does.
+            let plant_name = args.plant.as_deref().unwrap_or(scenario.plant.plant_name());
+            let aircraft = args
+                .aircraft
+                .as_deref()
+                .or((plant_name == scenario.plant.plant_name()
+                    && scenario.plant != PlantKind::BuiltIn)
+                    .then(|| scenario.plant.aircraft_name()));
+            let plant = PlantKind::from_names(plant_name, aircraft)?;
             let world = SimWorld::from_scenario_on(&scenario, args.seed, &plant)
                 .map_err(|e| e.to_string())?;
             let mut flight = args.flight;
