@@ -71,6 +71,12 @@ OUT_PROPS = [
 OUT = struct.Struct("<%dd" % len(OUT_PROPS))
 
 
+def set_if_there(fdm, name, value):
+    """Engine controls an airframe without a JSBSim engine (ours: a motor as tables) lacks."""
+    if fdm.get_property_manager().get_node(name, False) is not None:
+        fdm[name] = value
+
+
 def set_ic(fdm, heading_deg, height_m, airspeed_mps):
     fdm["ic/psi-true-deg"] = heading_deg
     fdm["ic/h-agl-ft"] = height_m / FT
@@ -85,8 +91,8 @@ def trimmed(fdm, cfg, heading_deg, height_m, airspeed_mps):
     set_ic(fdm, heading_deg, height_m, airspeed_mps)
     if not fdm.run_ic():
         fail("JSBSim refused the initial conditions")
-    fdm["propulsion/set-running"] = -1
-    fdm["fcs/mixture-cmd-norm"] = 1.0
+    set_if_there(fdm, "propulsion/set-running", -1)
+    set_if_there(fdm, "fcs/mixture-cmd-norm", 1.0)
     fdm["fcs/throttle-cmd-norm"] = 0.6
     try:
         fdm.do_trim(1)
@@ -128,7 +134,22 @@ def main():
     fdm["ic/terrain-elevation-ft"] = cfg["ground_msl_m"] / FT
     trim = None
     trim_speed = init["airspeed_mps"] if init["kind"] == "flight" else cfg.get("trim_airspeed_mps")
-    if trim_speed:
+    given = cfg.get("given_trim")
+    if given is not None and init["kind"] == "flight":
+        # Someone else's trim (the built-in model's, for the cross-check on our airframe):
+        # JSBSim starts from that state and those commands, and its own dynamics say whether
+        # they hold.
+        a, e, r, t = given["commands"]
+        fdm["fcs/aileron-cmd-norm"] = a
+        fdm["fcs/elevator-cmd-norm"] = -e
+        fdm["fcs/rudder-cmd-norm"] = -r
+        fdm["fcs/throttle-cmd-norm"] = t
+        set_ic(fdm, init["heading_deg"], init["altitude_m"], init["airspeed_mps"])
+        fdm["ic/alpha-rad"] = given["alpha_rad"]
+        if not fdm.run_ic():
+            fail("JSBSim refused the initial conditions")
+        trim = ([a, e, r, t], fdm["attitude/theta-rad"])
+    elif trim_speed:
         # Level flight at that speed, trimmed by JSBSim: the commands a pilot flies from.
         trim = trimmed(fdm, cfg, init["heading_deg"], max(init["altitude_m"], 100.0), trim_speed)
     t0 = 0.0
@@ -145,8 +166,8 @@ def main():
         set_ic(fdm, init["heading_deg"], (10.0 - lowest_ft) * FT + 0.01, 0.0)
         if not fdm.run_ic():
             fail("JSBSim refused the initial conditions")
-        fdm["propulsion/set-running"] = -1
-        fdm["fcs/mixture-cmd-norm"] = 1.0
+        set_if_there(fdm, "propulsion/set-running", -1)
+        set_if_there(fdm, "fcs/mixture-cmd-norm", 1.0)
         fdm["fcs/throttle-cmd-norm"] = 0.0
         fdm["fcs/elevator-cmd-norm"] = 0.0
         fdm["fcs/pitch-trim-cmd-norm"] = 0.0

@@ -15,6 +15,8 @@
 //! Units: JSBSim's properties are in feet, slugs, pounds and degrees in places; every
 //! conversion is here ([`FT_M`], [`LBF_N`]) and checked against physics in the tests.
 
+pub mod airframe;
+
 use super::math::{add, mat_vec, quat_from_euler, quat_to_euler, quat_to_rotation};
 use super::model::{FlightModel, PlantError};
 use super::rng::{NoiseRng, stream};
@@ -72,6 +74,9 @@ pub struct JsbsimConfig {
     pub trim_airspeed_mps: Option<f64>,
     /// A frame unanswered this long means the child hangs: the run ends with an error.
     pub frame_timeout: Duration,
+    /// An in-flight start from these commands at this angle of attack (rad) instead of
+    /// JSBSim's own trim: the built-in model's trim, for the cross-check.
+    pub given_trim: Option<(ActuatorCommands, f64)>,
 }
 
 impl JsbsimConfig {
@@ -87,6 +92,7 @@ impl JsbsimConfig {
             python: std::env::var("SKYFRAME_PYTHON").unwrap_or_else(|_| "python3".into()),
             trim_airspeed_mps: None,
             frame_timeout: Duration::from_secs(10),
+            given_trim: None,
         }
     }
 }
@@ -184,7 +190,7 @@ impl JsbsimModel {
             "{{\"aircraft\": {}, \"root\": {}, \"dt_s\": {}, \"lat_deg\": {}, \"lon_deg\": {}, \
              \"ground_msl_m\": {}, \"initial\": {{\"kind\": \"{kind}\", \"heading_deg\": {}, \
              \"altitude_m\": {altitude_m}, \"airspeed_mps\": {airspeed_mps}}}, \
-             \"trim_airspeed_mps\": {}}}\n",
+             \"trim_airspeed_mps\": {}, \"given_trim\": {}}}\n",
             json_string(&config.aircraft),
             config
                 .root
@@ -199,6 +205,17 @@ impl JsbsimModel {
                 .trim_airspeed_mps
                 .filter(|v| v.is_finite())
                 .map_or("null".to_string(), |v| v.to_string()),
+            config.given_trim.map_or("null".to_string(), |(c, alpha)| {
+                let c = c.sanitized();
+                format!(
+                    "{{\"commands\": [{}, {}, {}, {}], \"alpha_rad\": {}}}",
+                    c.aileron,
+                    c.elevator,
+                    c.rudder,
+                    c.throttle,
+                    if alpha.is_finite() { alpha } else { 0.0 }
+                )
+            }),
         );
         let mut child = spawn(&config)?;
         child
