@@ -12,10 +12,10 @@
 use crate::pilot::{Direction, Manoeuvre, Pilot, PilotConfig, Runway, SwitchPosition, wrap_pi};
 use crate::plant::trim::trim_level_flight;
 use crate::plant::{
-    ActuatorCommands, AircraftParams, DrydenParams, GpsConfig, InitialState, Plant, PlantConfig,
-    PlantKind, Truth, WindConfig,
+    ActuatorCommands, AircraftParams, DrydenParams, InitialState, Plant, PlantConfig, PlantKind,
+    SimGpsConfig, Truth, WindConfig,
 };
-use crate::servo_board::{OutputSource, PilotInput, ServoBoard};
+use crate::servo_board::{OutputSource, ServoBoard, TransmitterInput};
 use serde::Deserialize;
 use std::fmt;
 use std::ops::Range;
@@ -220,11 +220,11 @@ pub enum GpsPreset {
 }
 
 impl GpsPreset {
-    pub fn config(self) -> GpsConfig {
+    pub fn config(self) -> SimGpsConfig {
         match self {
-            GpsPreset::Nominal => GpsConfig::nominal_10hz(),
-            GpsPreset::SeedReceiver => GpsConfig::seed_receiver(),
-            GpsPreset::Ideal => GpsConfig::ideal(),
+            GpsPreset::Nominal => SimGpsConfig::nominal_10hz(),
+            GpsPreset::SeedReceiver => SimGpsConfig::seed_receiver(),
+            GpsPreset::Ideal => SimGpsConfig::ideal(),
         }
     }
 }
@@ -1327,10 +1327,10 @@ impl ScenarioPilot {
     }
 
     /// Applies the timeline entries due by `truth.t_s`, then looks and moves the sticks.
-    pub fn update(&mut self, truth: &Truth) -> PilotInput {
+    pub fn update(&mut self, truth: &Truth) -> TransmitterInput {
         self.player.advance(truth.t_s, &mut self.pilot);
         let sticks = self.pilot.update(truth);
-        PilotInput {
+        TransmitterInput {
             sticks,
             switch: self.pilot.switch(),
         }
@@ -1429,7 +1429,7 @@ impl FlightSummary {
 /// A command from a stand-in flight computer: what it wants the servos to do and whether it
 /// says it is ready to fly.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ComputerCommand {
+pub struct StandInCommand {
     pub commands: ActuatorCommands,
     pub autopilot_ready: bool,
 }
@@ -1446,7 +1446,7 @@ pub fn run_pilot_only(scenario: &Scenario, options: RunOptions) -> FlightSummary
 pub fn run_with_computer(
     scenario: &Scenario,
     options: RunOptions,
-    mut computer: impl FnMut(&Truth) -> Option<ComputerCommand>,
+    mut computer: impl FnMut(&Truth) -> Option<StandInCommand>,
 ) -> FlightSummary {
     let params = AircraftParams::aerosonde();
     let config = PlantConfig {

@@ -11,13 +11,13 @@
 
 use crate::pilot::SwitchPosition;
 use crate::plant::jsbsim::{JsbsimConfig, JsbsimModel, JsbsimStart};
-use crate::plant::sensors::{GpsFixType, GpsSample};
+use crate::plant::sensors::{GpsFixType, SimGpsSolution};
 use crate::plant::{
     ActuatorCommands, FlightModel, GeodeticPosition, Plant, PlantError, PlantKind, Truth,
 };
 pub use crate::scenario::Device;
 use crate::scenario::{Fault, FaultKind, InitialCondition, Scenario, ScenarioPilot};
-use crate::servo_board::{OutputSource, PilotInput, ServoBoard};
+use crate::servo_board::{OutputSource, ServoBoard, TransmitterInput};
 use skyframe_core::devices::gps::{
     FixDimension, FixQuality, GpsFix, SentenceKind, Talker, encode_sentence,
 };
@@ -46,20 +46,20 @@ pub trait DeviceLink {
 
 /// Whoever holds the pilot's transmitter: sticks, brakes and the auto/manual switch.
 pub trait Transmitter {
-    fn update(&mut self, truth: &Truth) -> PilotInput;
+    fn update(&mut self, truth: &Truth) -> TransmitterInput;
 }
 
 impl Transmitter for ScenarioPilot {
-    fn update(&mut self, truth: &Truth) -> PilotInput {
+    fn update(&mut self, truth: &Truth) -> TransmitterInput {
         ScenarioPilot::update(self, truth)
     }
 }
 
 /// A transmitter whose sticks never move: enough for a trimmed airplane to fly straight.
-pub struct SteadySticks(pub PilotInput);
+pub struct SteadySticks(pub TransmitterInput);
 
 impl Transmitter for SteadySticks {
-    fn update(&mut self, _truth: &Truth) -> PilotInput {
+    fn update(&mut self, _truth: &Truth) -> TransmitterInput {
         self.0
     }
 }
@@ -134,7 +134,7 @@ pub struct SimWorld {
     next_board_ns: u64,
     board_counter: u8,
     commands: ServoCommandDecoder,
-    pilot_input: PilotInput,
+    pilot_input: TransmitterInput,
     scheduled_faults: Vec<Fault>,
     /// The scheduled faults come round again every this many seconds (a soak); `None`: once.
     fault_period_s: Option<f64>,
@@ -159,7 +159,7 @@ impl SimWorld {
             next_board_ns: start,
             board_counter: 0,
             commands: ServoCommandDecoder::new(u64::MAX),
-            pilot_input: PilotInput::default(),
+            pilot_input: TransmitterInput::default(),
             scheduled_faults: Vec::new(),
             fault_period_s: None,
             faults: DeviceFaults::default(),
@@ -244,7 +244,7 @@ impl SimWorld {
     }
 
     /// What the pilot is doing with the transmitter.
-    pub fn pilot_input(&self) -> PilotInput {
+    pub fn pilot_input(&self) -> TransmitterInput {
         self.pilot_input
     }
 
@@ -398,13 +398,13 @@ impl SimWorld {
         self.garbage(Device::Imu, link);
     }
 
-    fn send_gps(&mut self, sample: &GpsSample, link: &mut dyn DeviceLink) {
+    fn send_gps(&mut self, sample: &SimGpsSolution, link: &mut dyn DeviceLink) {
         if self.silent(Device::Gps) {
             return;
         }
         let fix = gps_fix(sample, self.faults.gps_loss);
         let mut buf = [0u8; 160];
-        // POS last: the receiver is configured to end each epoch with it (GpsConfig).
+        // POS last: the receiver is configured to end each epoch with it (core's `devices::gps::GpsConfig`).
         for kind in [
             SentenceKind::Gga,
             SentenceKind::Rmc,
@@ -460,7 +460,7 @@ impl SimWorld {
 }
 
 /// The receiver's solution as the sentences will carry it.
-pub fn gps_fix(sample: &GpsSample, forced_loss: bool) -> GpsFix {
+pub fn gps_fix(sample: &SimGpsSolution, forced_loss: bool) -> GpsFix {
     let valid = sample.fix == GpsFixType::Fix3d && !forced_loss;
     let utc_ms = (UTC_START_MS + (sample.valid_at_s * 1000.0).round().max(0.0) as u64) % 86_400_000;
     let [vn, ve, vd] = sample.velocity_ned_mps;

@@ -48,10 +48,10 @@ pub use model::{FlightModel, PlantError, PlantKind};
 pub use params::{AircraftParams, GRAVITY_MPS2};
 use rng::{NoiseRng, stream};
 pub use sensors::{
-    BatteryConfig, BatterySample, GeodeticPosition, GpsConfig, GpsFixType, GpsSample, ImuConfig,
-    ImuSample,
+    BatteryConfig, BatterySample, GeodeticPosition, GpsFixType, SimGpsConfig, SimGpsSolution,
+    SimImuConfig, SimImuReading,
 };
-use sensors::{BatteryModel as SimBatteries, GpsModel as SimGpsReceiver, ImuModel as SimImu};
+use sensors::{SimBatteries, SimGpsReceiver, SimImu};
 pub use sixdof::SixDofModel;
 pub use wind::{DrydenParams, WindConfig};
 
@@ -221,8 +221,8 @@ pub const MAX_STEP_S: f64 = 0.01;
 pub struct PlantConfig {
     pub params: AircraftParams,
     pub wind: WindConfig,
-    pub imu: ImuConfig,
-    pub gps: GpsConfig,
+    pub imu: SimImuConfig,
+    pub gps: SimGpsConfig,
     pub battery: BatteryConfig,
     /// Longest RK4 step (s); [`Plant::step`] splits a longer `dt` into equal sub-steps.
     pub max_step_s: f64,
@@ -239,8 +239,8 @@ impl Default for PlantConfig {
         Self {
             params: AircraftParams::aerosonde(),
             wind: WindConfig::calm(),
-            imu: ImuConfig::default(),
-            gps: GpsConfig::default(),
+            imu: SimImuConfig::default(),
+            gps: SimGpsConfig::default(),
             battery: BatteryConfig::default(),
             max_step_s: 0.001,
             surface_time_constant_s: 0.03,
@@ -393,7 +393,7 @@ impl<M: FlightModel> Plant<M> {
     }
 
     /// An IMU reading now.
-    pub fn sample_imu(&mut self) -> ImuSample {
+    pub fn sample_imu(&mut self) -> SimImuReading {
         let t = self.time_s();
         let truth = self.model.truth();
         self.sensors
@@ -402,7 +402,7 @@ impl<M: FlightModel> Plant<M> {
     }
 
     /// The oldest GPS solution delivered by now, if any; call until `None` to drain.
-    pub fn sample_gps(&mut self) -> Option<GpsSample> {
+    pub fn sample_gps(&mut self) -> Option<SimGpsSolution> {
         let t = self.time_s();
         self.sensors.gps.take(t)
     }

@@ -13,9 +13,9 @@ use super::rng::NoiseRng;
 /// IMU error model, per axis. Noise figures are standard deviations of one sample at the
 /// configured rate; bias and scale errors are drawn once per run (a seed is one IMU unit).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ImuConfig {
+pub struct SimImuConfig {
     /// Nominal output rate (Hz). The caller decides when to sample; this documents the rate the
-    /// noise figures are meant for and sets the period [`ImuModel::period_s`] reports.
+    /// noise figures are meant for and sets the period [`SimImu::period_s`] reports.
     pub rate_hz: f64,
     pub gyro_noise_std_radps: f64,
     /// Standard deviation of the turn-on bias.
@@ -30,7 +30,7 @@ pub struct ImuConfig {
     pub accel_scale_error_std: f64,
 }
 
-impl ImuConfig {
+impl SimImuConfig {
     /// A hobby-grade MEMS IMU (MPU-6000 class) at 100 Hz.
     pub fn mems_100hz() -> Self {
         Self {
@@ -62,7 +62,7 @@ impl ImuConfig {
     }
 }
 
-impl Default for ImuConfig {
+impl Default for SimImuConfig {
     fn default() -> Self {
         Self::mems_100hz()
     }
@@ -70,7 +70,7 @@ impl Default for ImuConfig {
 
 /// One IMU reading, body FRD axes.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ImuSample {
+pub struct SimImuReading {
     /// Plant time of the reading (s).
     pub t_s: f64,
     /// (p, q, r) (rad/s).
@@ -80,8 +80,8 @@ pub struct ImuSample {
 }
 
 #[derive(Debug, Clone)]
-pub struct ImuModel {
-    config: ImuConfig,
+pub struct SimImu {
+    config: SimImuConfig,
     rng: NoiseRng,
     gyro_bias: Vec3,
     accel_bias: Vec3,
@@ -90,8 +90,8 @@ pub struct ImuModel {
     last_t_s: Option<f64>,
 }
 
-impl ImuModel {
-    pub fn new(config: ImuConfig, mut rng: NoiseRng) -> Self {
+impl SimImu {
+    pub fn new(config: SimImuConfig, mut rng: NoiseRng) -> Self {
         let mut draw = |std: f64| {
             let z = rng.normal3();
             [z[0] * std, z[1] * std, z[2] * std]
@@ -111,7 +111,7 @@ impl ImuModel {
         }
     }
 
-    pub fn config(&self) -> &ImuConfig {
+    pub fn config(&self) -> &SimImuConfig {
         &self.config
     }
 
@@ -126,7 +126,12 @@ impl ImuModel {
 
     /// A reading of the true rates and specific force at `t_s`: scale error, bias (after its
     /// random walk since the previous reading), white noise.
-    pub fn sample(&mut self, t_s: f64, rates_radps: Vec3, specific_force_mps2: Vec3) -> ImuSample {
+    pub fn sample(
+        &mut self,
+        t_s: f64,
+        rates_radps: Vec3,
+        specific_force_mps2: Vec3,
+    ) -> SimImuReading {
         let dt = self.last_t_s.map_or(0.0, |last| (t_s - last).max(0.0));
         self.last_t_s = Some(t_s);
         let c = self.config;
@@ -144,7 +149,7 @@ impl ImuModel {
                 + self.accel_bias[i]
                 + c.accel_noise_std_mps2 * self.rng.normal();
         }
-        ImuSample {
+        SimImuReading {
             t_s,
             gyro_radps: gyro,
             specific_force_mps2: accel,
@@ -215,7 +220,7 @@ impl GeodeticPosition {
 
 /// GPS receiver model.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct GpsConfig {
+pub struct SimGpsConfig {
     pub home: GeodeticPosition,
     /// Mean time between fixes (s), peaks included.
     pub mean_interval_s: f64,
@@ -251,7 +256,7 @@ pub struct GpsConfig {
     pub nominal_satellites: u8,
 }
 
-impl GpsConfig {
+impl SimGpsConfig {
     /// A u-blox-class receiver at a clean 10 Hz.
     pub fn nominal_10hz() -> Self {
         Self {
@@ -308,7 +313,7 @@ impl GpsConfig {
     }
 }
 
-impl Default for GpsConfig {
+impl Default for SimGpsConfig {
     fn default() -> Self {
         Self::nominal_10hz()
     }
@@ -324,7 +329,7 @@ pub enum GpsFixType {
 /// the last valid solution (or home and zero) and the standard deviations are large: a
 /// consumer must check `fix`, but nothing here is ever NaN.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct GpsSample {
+pub struct SimGpsSolution {
     /// Plant time at which the solution is valid (s).
     pub valid_at_s: f64,
     /// Plant time from which the receiver delivers it (s): `valid_at_s + latency`.
@@ -345,20 +350,20 @@ pub struct GpsSample {
 const NO_FIX_STD_M: f64 = 9_999.0;
 
 #[derive(Debug, Clone)]
-pub struct GpsModel {
-    config: GpsConfig,
+pub struct SimGpsReceiver {
+    config: SimGpsConfig,
     rng: NoiseRng,
     next_fix_s: f64,
     last_fix_s: Option<f64>,
     drift_ned_m: Vec3,
     outage_until_s: f64,
     satellites: u8,
-    pending: VecDeque<GpsSample>,
+    pending: VecDeque<SimGpsSolution>,
     last_valid: Option<(GeodeticPosition, Vec3)>,
 }
 
-impl GpsModel {
-    pub fn new(config: GpsConfig, mut rng: NoiseRng) -> Self {
+impl SimGpsReceiver {
+    pub fn new(config: SimGpsConfig, mut rng: NoiseRng) -> Self {
         // Draw the start of the drift from its stationary distribution, and the first fix
         // somewhere in the first interval, so runs do not all start in phase.
         let drift = [
@@ -380,7 +385,7 @@ impl GpsModel {
         }
     }
 
-    pub fn config(&self) -> &GpsConfig {
+    pub fn config(&self) -> &SimGpsConfig {
         &self.config
     }
 
@@ -418,7 +423,7 @@ impl GpsModel {
         }
     }
 
-    fn make_fix(&mut self, t_s: f64, pos: Vec3, vel: Vec3) -> GpsSample {
+    fn make_fix(&mut self, t_s: f64, pos: Vec3, vel: Vec3) -> SimGpsSolution {
         let c = self.config;
         let dt = self.last_fix_s.map_or(0.0, |last| t_s - last);
         // First-order Gauss–Markov drift, stepped exactly over the interval.
@@ -444,7 +449,7 @@ impl GpsModel {
         let available_at_s = t_s + c.latency_s;
         if t_s < self.outage_until_s {
             let (position, velocity) = self.last_valid.unwrap_or((c.home, [0.0; 3]));
-            return GpsSample {
+            return SimGpsSolution {
                 valid_at_s: t_s,
                 available_at_s,
                 fix: GpsFixType::NoFix,
@@ -482,7 +487,7 @@ impl GpsModel {
             (c.horizontal_drift_std_m.powi(2) * dop_scale * dop_scale + h_std * h_std).sqrt();
         let v_total =
             (c.vertical_drift_std_m.powi(2) * dop_scale * dop_scale + v_std * v_std).sqrt();
-        GpsSample {
+        SimGpsSolution {
             valid_at_s: t_s,
             available_at_s,
             fix: GpsFixType::Fix3d,
@@ -498,7 +503,7 @@ impl GpsModel {
     }
 
     /// The oldest fix available at `t_s`, if any (call until `None` to drain).
-    pub fn take(&mut self, t_s: f64) -> Option<GpsSample> {
+    pub fn take(&mut self, t_s: f64) -> Option<SimGpsSolution> {
         if self.pending.front()?.available_at_s <= t_s {
             self.pending.pop_front()
         } else {
@@ -639,14 +644,14 @@ pub struct BatterySample {
 }
 
 #[derive(Debug, Clone)]
-pub struct BatteryModel {
+pub struct SimBatteries {
     config: BatteryConfig,
     rng: NoiseRng,
     avionics: PackState,
     propulsion: PackState,
 }
 
-impl BatteryModel {
+impl SimBatteries {
     pub fn new(config: BatteryConfig, rng: NoiseRng) -> Self {
         Self {
             avionics: pack_at_rest(&config.avionics),
@@ -697,7 +702,7 @@ mod tests {
 
     #[test]
     fn ideal_imu_reads_the_truth() {
-        let mut imu = ImuModel::new(ImuConfig::ideal(), NoiseRng::new(3, stream::IMU));
+        let mut imu = SimImu::new(SimImuConfig::ideal(), NoiseRng::new(3, stream::IMU));
         let s = imu.sample(0.01, [0.1, -0.2, 0.3], [0.0, 0.0, -9.80665]);
         assert_eq!(s.gyro_radps, [0.1, -0.2, 0.3]);
         assert_eq!(s.specific_force_mps2, [0.0, 0.0, -9.80665]);
@@ -705,12 +710,12 @@ mod tests {
 
     #[test]
     fn imu_noise_and_bias_have_the_configured_size() {
-        let cfg = ImuConfig {
+        let cfg = SimImuConfig {
             gyro_bias_walk_radps_per_sqrt_s: 0.0,
             accel_bias_walk_mps2_per_sqrt_s: 0.0,
-            ..ImuConfig::mems_100hz()
+            ..SimImuConfig::mems_100hz()
         };
-        let mut imu = ImuModel::new(cfg, NoiseRng::new(5, stream::IMU));
+        let mut imu = SimImu::new(cfg, NoiseRng::new(5, stream::IMU));
         let (gb, _) = imu.biases();
         let n = 20_000;
         let (mut s, mut s2) = (0.0, 0.0);
@@ -726,7 +731,7 @@ mod tests {
         );
         assert!((s / n as f64).abs() < 1e-4);
         // The bias walks when the walk is on.
-        let mut walking = ImuModel::new(ImuConfig::mems_100hz(), NoiseRng::new(5, stream::IMU));
+        let mut walking = SimImu::new(SimImuConfig::mems_100hz(), NoiseRng::new(5, stream::IMU));
         let before = walking.biases().0;
         walking.sample(0.0, [0.0; 3], [0.0; 3]);
         walking.sample(100.0, [0.0; 3], [0.0; 3]);
@@ -747,8 +752,8 @@ mod tests {
         }
     }
 
-    fn fix_times(cfg: GpsConfig, seconds: f64) -> Vec<f64> {
-        let mut gps = GpsModel::new(cfg, NoiseRng::new(11, stream::GPS));
+    fn fix_times(cfg: SimGpsConfig, seconds: f64) -> Vec<f64> {
+        let mut gps = SimGpsReceiver::new(cfg, NoiseRng::new(11, stream::GPS));
         let dt = 0.001;
         let mut times = Vec::new();
         for k in 0..(seconds / dt) as usize {
@@ -765,7 +770,7 @@ mod tests {
 
     #[test]
     fn gps_interval_statistics_match_the_configuration() {
-        for cfg in [GpsConfig::nominal_10hz(), GpsConfig::seed_receiver()] {
+        for cfg in [SimGpsConfig::nominal_10hz(), SimGpsConfig::seed_receiver()] {
             let times = fix_times(cfg, 600.0);
             let intervals: Vec<f64> = times.windows(2).map(|w| w[1] - w[0]).collect();
             let mean = intervals.iter().sum::<f64>() / intervals.len() as f64;
@@ -788,12 +793,12 @@ mod tests {
 
     #[test]
     fn gps_has_outages_and_dop_changes_but_never_nan() {
-        let cfg = GpsConfig {
+        let cfg = SimGpsConfig {
             outage_probability: 0.01,
             constellation_change_probability: 0.05,
-            ..GpsConfig::nominal_10hz()
+            ..SimGpsConfig::nominal_10hz()
         };
-        let mut gps = GpsModel::new(cfg, NoiseRng::new(2, stream::GPS));
+        let mut gps = SimGpsReceiver::new(cfg, NoiseRng::new(2, stream::GPS));
         let (mut no_fix, mut fixes) = (0, 0);
         let mut hdops = Vec::new();
         for k in 0..60_000 {
@@ -822,8 +827,8 @@ mod tests {
 
     #[test]
     fn gps_error_is_of_the_configured_size() {
-        let cfg = GpsConfig::nominal_10hz();
-        let mut gps = GpsModel::new(cfg, NoiseRng::new(4, stream::GPS));
+        let cfg = SimGpsConfig::nominal_10hz();
+        let mut gps = SimGpsReceiver::new(cfg, NoiseRng::new(4, stream::GPS));
         let home = cfg.home;
         let mut sum2 = 0.0;
         let mut n = 0;
@@ -849,7 +854,7 @@ mod tests {
 
     #[test]
     fn battery_sags_under_load_and_recovers() {
-        let mut b = BatteryModel::new(
+        let mut b = SimBatteries::new(
             BatteryConfig::aerosonde(),
             NoiseRng::new(1, stream::BATTERY),
         );

@@ -200,7 +200,7 @@ fn board_gives_a_ready_computer_the_servos_on_auto_and_the_pilot_when_it_dies() 
     let trim = crate::plant::trim::trim_level_flight(&params, 23.0, 100.0, 0.0).expect("trim");
     let dies_at_s = 154.0;
     let computer = |t: &Truth| {
-        (t.t_s < dies_at_s).then(|| ComputerCommand {
+        (t.t_s < dies_at_s).then(|| StandInCommand {
             commands: ActuatorCommands {
                 aileron: -1.5 * t.roll_rad - 0.25 * t.rates_body_radps[0],
                 elevator: trim.commands.elevator + 2.5 * (trim.pitch_rad + 0.05 - t.pitch_rad)

@@ -119,9 +119,19 @@ struct Driver {
     frames: Receiver<Result<Frame, String>>,
     /// The last lines the child wrote on stderr, for error messages.
     stderr_tail: Arc<Mutex<VecDeque<String>>>,
+    /// Says when the child's stderr has closed (all its last words are in).
+    stderr_closed: Receiver<()>,
 }
 
 impl Driver {
+    /// Ends the child and waits (briefly: a grandchild may hold the pipe) for the rest of
+    /// what it wrote on stderr.
+    fn finish(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+        let _ = self.stderr_closed.recv_timeout(Duration::from_millis(500));
+    }
+
     fn last_words(&self) -> String {
         self.stderr_tail
             .lock()
@@ -227,6 +237,7 @@ impl JsbsimModel {
             Ok(Err(line)) => line,
             Ok(Ok(_)) => String::new(),
             Err(_) => {
+                child.finish();
                 return Err(PlantError(format!(
                     "jsbsim: {} did not start JSBSim{}",
                     config.python,
@@ -235,6 +246,7 @@ impl JsbsimModel {
             }
         };
         let (version, trim) = parse_hello(&answer).map_err(|e| {
+            child.finish();
             PlantError(format!(
                 "jsbsim: {e}{}",
                 if e.contains("no aircraft") || e.contains("not installed") {
@@ -324,6 +336,7 @@ impl JsbsimModel {
             chunk.copy_from_slice(&v.to_le_bytes());
         }
         let dead = |child: &mut Driver, what: &str| {
+            child.finish();
             let status = child
                 .child
                 .try_wait()
@@ -520,6 +533,7 @@ fn spawn(config: &JsbsimConfig) -> Result<Driver, PlantError> {
     };
     let stderr_tail = Arc::new(Mutex::new(VecDeque::new()));
     let tail = Arc::clone(&stderr_tail);
+    let (closed_tx, stderr_closed) = sync_channel(1);
     std::thread::spawn(move || {
         for line in BufReader::new(stderr).lines().map_while(Result::ok) {
             let line = line.trim().to_string();
@@ -533,6 +547,7 @@ fn spawn(config: &JsbsimConfig) -> Result<Driver, PlantError> {
                 t.push_back(line);
             }
         }
+        let _ = closed_tx.send(());
     });
     // One frame in flight at a time: the channel needs no depth.
     let (tx, frames) = sync_channel(1);
@@ -586,6 +601,7 @@ fn spawn(config: &JsbsimConfig) -> Result<Driver, PlantError> {
         stdin,
         frames,
         stderr_tail,
+        stderr_closed,
     })
 }
 
