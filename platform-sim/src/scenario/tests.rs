@@ -1,6 +1,9 @@
 //! Scenario parsing, and the shipped scenarios flown by the scripted pilot alone.
 
 use super::*;
+use crate::pilot::{Direction, Pilot, PilotConfig};
+use crate::plant::{ActuatorCommands, Truth};
+use crate::servo_board::OutputSource;
 
 const TAKEOFF_CIRCUIT: &str = include_str!("../../../scenarios/takeoff-circuit.toml");
 const FAULTS: &str = include_str!("../../../scenarios/faults.toml");
