@@ -127,6 +127,9 @@ def main():
         loaded = False
     if not loaded:
         fail(f"JSBSim has no aircraft \"{cfg['aircraft']}\" (in {fdm.get_root_dir()})")
+    # Some aircraft (c172x) ask for CSV output files in the working directory: ours is the
+    # pipe.
+    fdm.disable_output()
     fdm.set_dt(cfg["dt_s"])
     init = cfg["initial"]
     fdm["ic/lat-geod-deg"] = cfg["lat_deg"]
