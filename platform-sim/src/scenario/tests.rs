@@ -2,7 +2,7 @@
 
 use super::*;
 use crate::pilot::{Direction, Pilot, PilotConfig};
-use crate::plant::{ActuatorCommands, Truth};
+use crate::plant::{ActuatorCommands, PlantKind, Truth};
 use crate::servo_board::OutputSource;
 
 const TAKEOFF_CIRCUIT: &str = include_str!("../../../scenarios/takeoff-circuit.toml");
@@ -770,5 +770,53 @@ mod robustness {
                 prop_assert!(e.line <= damaged.lines().count() + 1, "{}", text);
             }
         }
+    }
+}
+
+#[test]
+fn the_plant_table_names_the_flight_model() {
+    assert_eq!(parse(MINIMAL).plant, PlantKind::BuiltIn);
+    let s = parse("duration_s = 10\n[plant]\nkind = \"jsbsim\"\n");
+    assert_eq!(
+        s.plant,
+        PlantKind::Jsbsim {
+            aircraft: "c172x".into()
+        }
+    );
+    let s = parse(
+        "duration_s = 10\n[plant]\nkind = \"jsbsim\"\naircraft = \"J3Cub\"\ncruise_airspeed_mps = 25\n",
+    );
+    assert_eq!(
+        s.plant,
+        PlantKind::Jsbsim {
+            aircraft: "J3Cub".into()
+        }
+    );
+    assert_eq!(s.pilot_cruise_airspeed_mps, Some(25.0));
+    for (src, line, expected) in [
+        (
+            "duration_s = 10\n[plant]\nkind = \"xplane\"\n",
+            3,
+            "unknown plant \"xplane\"",
+        ),
+        (
+            "duration_s = 10\n[plant]\nkind = \"builtin\"\naircraft = \"c172x\"\n",
+            3,
+            "flies only \"aerosonde\"",
+        ),
+        (
+            "duration_s = 10\n[plant]\nkind = \"jsbsim\"\naircraft = \"../../etc\"\n",
+            4,
+            "`aircraft` must be a name",
+        ),
+        (
+            "duration_s = 10\n[plant]\nkind = \"jsbsim\"\ncruise_airspeed_mps = 500\n",
+            4,
+            "cruise_airspeed_mps",
+        ),
+    ] {
+        let e = Scenario::parse(src).expect_err(src);
+        assert_eq!(e.line, line, "{e}");
+        assert!(e.message.contains(expected), "{e}");
     }
 }

@@ -213,8 +213,9 @@ pub fn skyframe_uav_xml(p: &AircraftParams, surface_tau_s: f64, throttle_tau_s: 
     let cm = table1("aero/skyframe/cm-alpha", &|a| {
         pitching_moment_coefficient(p, a)
     });
+    // JSBSim wants two or more terms in a sum: a zero makes that so for short ones.
     let sum = |terms: &[(f64, &str)]| {
-        let mut s = String::from("<sum>");
+        let mut s = String::from("<sum><value>0</value>");
         for (k, prop) in terms {
             let _ = write!(s, "<product><value>{k}</value>{prop}</product>");
         }

@@ -186,6 +186,32 @@ impl JsbsimModel {
         start: JsbsimStart,
         seed: u64,
     ) -> Result<Self, PlantError> {
+        let mut config = config;
+        if let (
+            true,
+            None,
+            JsbsimStart::InFlight {
+                altitude_m,
+                airspeed_mps,
+                heading_rad,
+            },
+        ) = (config.aircraft == OUR_AIRFRAME, config.given_trim, start)
+        {
+            // JSBSim's trim cannot move our airframe's throttle (it has no JSBSim engine, only
+            // the motor's tables): start from the built-in model's trim of the same airframe.
+            let trim = super::trim::trim_level_flight(
+                &plant.params,
+                airspeed_mps,
+                altitude_m,
+                heading_rad,
+            )
+            .map_err(|e| {
+                PlantError(format!(
+                    "jsbsim: cannot trim {OUR_AIRFRAME} at {airspeed_mps} m/s: {e:?}"
+                ))
+            })?;
+            config.given_trim = Some((trim.commands, trim.alpha_rad));
+        }
         let frame_ns = (config.frame_s * 1e3).round().max(1.0) as u64 * 1_000_000;
         let home = plant.gps.home;
         let (kind, heading_rad, altitude_m, airspeed_mps) = match start {
