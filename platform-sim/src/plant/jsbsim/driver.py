@@ -14,6 +14,7 @@ and its tests check the result against physics.
 import json
 import os
 import struct
+import tempfile
 import sys
 
 FT = 0.3048
@@ -119,6 +120,10 @@ def main():
         cfg = json.loads(line)
     except ValueError as e:
         fail(f"bad start message: {e}")
+    # A private working directory: whatever JSBSim writes there (c172x's CSV output, opened
+    # as the aircraft loads) goes with it, not into the caller's directory.
+    workdir = tempfile.TemporaryDirectory(prefix="skyframe-jsbsim-")
+    os.chdir(workdir.name)
     fdm = jsbsim.FGFDMExec(cfg.get("root"))
     fdm.set_debug_level(0)
     try:
@@ -127,8 +132,8 @@ def main():
         loaded = False
     if not loaded:
         fail(f"JSBSim has no aircraft \"{cfg['aircraft']}\" (in {fdm.get_root_dir()})")
-    # Some aircraft (c172x) ask for CSV output files in the working directory: ours is the
-    # pipe.
+    # Some aircraft (c172x) ask for CSV output files, written into the working directory as
+    # the aircraft loads: ours is the pipe.
     fdm.disable_output()
     fdm.set_dt(cfg["dt_s"])
     init = cfg["initial"]

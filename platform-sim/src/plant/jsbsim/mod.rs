@@ -115,7 +115,8 @@ impl Frame {
 /// The child and the thread reading its output.
 struct Driver {
     child: Child,
-    stdin: ChildStdin,
+    /// `None` once closed (dropping the driver).
+    stdin: Option<ChildStdin>,
     frames: Receiver<Result<Frame, String>>,
     /// The last lines the child wrote on stderr, for error messages.
     stderr_tail: Arc<Mutex<VecDeque<String>>>,
@@ -124,6 +125,15 @@ struct Driver {
 }
 
 impl Driver {
+    fn write_all(&mut self, bytes: &[u8]) -> std::io::Result<()> {
+        let stdin = self
+            .stdin
+            .as_mut()
+            .ok_or_else(|| std::io::Error::from(std::io::ErrorKind::BrokenPipe))?;
+        stdin.write_all(bytes)?;
+        stdin.flush()
+    }
+
     /// Ends the child and waits (briefly: a grandchild may hold the pipe) for the rest of
     /// what it wrote on stderr.
     fn finish(&mut self) {
@@ -144,7 +154,16 @@ impl Driver {
 
 impl Drop for Driver {
     fn drop(&mut self) {
-        // Closing stdin ends the driver's loop; kill in case it is stuck.
+        // Closing stdin ends the driver's loop and it cleans up after itself (its working
+        // directory); kill it if it has not gone within a second.
+        drop(self.stdin.take());
+        let deadline = std::time::Instant::now() + Duration::from_secs(1);
+        while std::time::Instant::now() < deadline {
+            if let Ok(Some(_)) = self.child.try_wait() {
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(5));
+        }
         let _ = self.child.kill();
         let _ = self.child.wait();
     }
@@ -255,9 +274,7 @@ impl JsbsimModel {
         );
         let mut child = spawn(&config)?;
         child
-            .stdin
             .write_all(hello.as_bytes())
-            .and_then(|()| child.stdin.flush())
             .map_err(|e| PlantError(format!("jsbsim: cannot talk to {}: {e}", config.python)))?;
         let answer = match child.frames.recv_timeout(START_TIMEOUT) {
             Ok(Err(line)) => line,
@@ -372,13 +389,7 @@ impl JsbsimModel {
                 .unwrap_or_default();
             PlantError(format!("jsbsim: {what}{status}{}", child.last_words()))
         };
-        if self
-            .child
-            .stdin
-            .write_all(&msg)
-            .and_then(|()| self.child.stdin.flush())
-            .is_err()
-        {
+        if self.child.write_all(&msg).is_err() {
             return Err(dead(&mut self.child, "the JSBSim process is gone"));
         }
         let frame = match self.child.frames.recv_timeout(self.config.frame_timeout) {
@@ -624,7 +635,7 @@ fn spawn(config: &JsbsimConfig) -> Result<Driver, PlantError> {
     });
     Ok(Driver {
         child,
-        stdin,
+        stdin: Some(stdin),
         frames,
         stderr_tail,
         stderr_closed,

@@ -225,6 +225,13 @@ fn fake_python(name: &str, body: &str) -> String {
     path.to_string_lossy().into_owned()
 }
 
+/// Removes `fake_python`'s directory.
+fn remove_fake(python: &str) {
+    if let Some(dir) = std::path::Path::new(python).parent() {
+        let _ = std::fs::remove_dir_all(dir);
+    }
+}
+
 fn start_with(python: String, aircraft: &str) -> Result<JsbsimModel, PlantError> {
     let config = JsbsimConfig {
         python,
@@ -267,7 +274,8 @@ fn a_child_that_dies_says_so() {
         "dies",
         "read hello\necho '{\"ok\": true}'\necho 'boom' >&2\nexit 7",
     );
-    let e = start_with(python, "c172x").expect_err("dead child");
+    let e = start_with(python.clone(), "c172x").expect_err("dead child");
+    remove_fake(&python);
     let text = one_line(&e);
     assert!(text.contains("ended") || text.contains("gone"), "{text}");
     assert!(text.contains("boom"), "its last words: {text}");
@@ -281,10 +289,12 @@ fn garbage_on_the_pipe_is_refused() {
         "read hello\necho '{\"ok\": true}'\nhead -c 72 >/dev/null\n\
          i=0; while [ $i -lt 232 ]; do printf x; i=$((i+1)); done\nsleep 5",
     );
-    let e = start_with(python, "c172x").expect_err("garbage");
+    let e = start_with(python.clone(), "c172x").expect_err("garbage");
+    remove_fake(&python);
     assert!(one_line(&e).contains("garbage"), "{e}");
     let python = fake_python("garbage-greeting", "read hello\necho 'Segmentation fault'");
-    let e = start_with(python, "c172x").expect_err("garbage greeting");
+    let e = start_with(python.clone(), "c172x").expect_err("garbage greeting");
+    remove_fake(&python);
     assert!(one_line(&e).contains("garbage"), "{e}");
 }
 
@@ -292,7 +302,8 @@ fn garbage_on_the_pipe_is_refused() {
 fn a_hung_child_times_out() {
     let python = fake_python("hangs", "read hello\necho '{\"ok\": true}'\nsleep 30");
     let t0 = std::time::Instant::now();
-    let e = start_with(python, "c172x").expect_err("hung");
+    let e = start_with(python.clone(), "c172x").expect_err("hung");
+    remove_fake(&python);
     assert!(one_line(&e).contains("no answer"), "{e}");
     assert!(t0.elapsed() < Duration::from_secs(5), "{:?}", t0.elapsed());
 }
