@@ -133,6 +133,8 @@ fn jsbsim_dying_mid_flight_ends_the_run_in_one_line() {
     let started = std::time::Instant::now();
     let out = skyframe()
         .env("SKYFRAME_PYTHON", &python)
+        // The killed driver cannot remove its working directory: keep it in the scratch dir.
+        .env("TMPDIR", &dir)
         .args([
             "sim",
             "--fast",

@@ -134,11 +134,25 @@ impl Driver {
         stdin.flush()
     }
 
+    /// Ends the child: closing its stdin ends the driver's loop and it cleans up after itself
+    /// (its working directory); killed if it has not gone within a second.
+    fn stop(&mut self) {
+        drop(self.stdin.take());
+        let deadline = std::time::Instant::now() + Duration::from_secs(1);
+        while std::time::Instant::now() < deadline {
+            if let Ok(Some(_)) = self.child.try_wait() {
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(2));
+        }
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+
     /// Ends the child and waits (briefly: a grandchild may hold the pipe) for the rest of
     /// what it wrote on stderr.
     fn finish(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
+        self.stop();
         let _ = self.stderr_closed.recv_timeout(Duration::from_millis(500));
     }
 
@@ -154,18 +168,7 @@ impl Driver {
 
 impl Drop for Driver {
     fn drop(&mut self) {
-        // Closing stdin ends the driver's loop and it cleans up after itself (its working
-        // directory); kill it if it has not gone within a second.
-        drop(self.stdin.take());
-        let deadline = std::time::Instant::now() + Duration::from_secs(1);
-        while std::time::Instant::now() < deadline {
-            if let Ok(Some(_)) = self.child.try_wait() {
-                return;
-            }
-            std::thread::sleep(Duration::from_millis(5));
-        }
-        let _ = self.child.kill();
-        let _ = self.child.wait();
+        self.stop();
     }
 }
 
