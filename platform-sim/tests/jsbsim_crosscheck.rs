@@ -270,4 +270,9 @@ fn a_coordinated_turn_turns_at_the_rate_physics_says() {
         ea.yaw_rad.to_degrees(),
         eb.yaw_rad.to_degrees(),
     );
+    // Both plants, same pilot: within 3° of each other after 240° of turn, and at one height.
+    let apart = (ea.yaw_rad - eb.yaw_rad + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
+        - std::f64::consts::PI;
+    assert!(apart.abs() < 3f64.to_radians(), "{}", apart.to_degrees());
+    assert!((ea.height_above_ground_m - eb.height_above_ground_m).abs() < 3.0);
 }
