@@ -245,8 +245,8 @@ pub struct SimArgs {
     /// jsbsim package). Default: the scenario's `[plant]`, else builtin.
     #[arg(long, value_name = "builtin|jsbsim")]
     pub plant: Option<String>,
-    /// JSBSim's aircraft (`c172x`, `J3Cub`, … or our `skyframe-uav`); default: the
-    /// scenario's, else c172x.
+    /// JSBSim's aircraft (`c172x`, `J3Cub`, … or our `skyframe-uav`; alone it implies
+    /// `--plant jsbsim`); default: the scenario's, else c172x.
     #[arg(long, value_name = "NAME")]
     pub aircraft: Option<String>,
     #[command(flatten)]
@@ -534,8 +534,13 @@ fn run<P: Platform>(platform: &P, command: Command) -> Result<ExitCode, String> 
             }
             .map_err(|e| e.to_string())?;
             // --plant and --aircraft override the scenario's `[plant]`; the scenario's
-            // aircraft stays only when the plant does.
-            let plant_name = args.plant.as_deref().unwrap_or(scenario.plant.plant_name());
+            // aircraft stays only when the plant does; an aircraft other than ours alone
+            // means JSBSim.
+            let plant_name = match (args.plant.as_deref(), args.aircraft.as_deref()) {
+                (Some(plant), _) => plant,
+                (None, Some(a)) if a != "aerosonde" => "jsbsim",
+                (None, _) => scenario.plant.plant_name(),
+            };
             let aircraft = args
                 .aircraft
                 .as_deref()
