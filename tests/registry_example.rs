@@ -154,7 +154,9 @@ fn a_task_added_through_the_registry_is_analysed_flown_logged_converted_and_sent
         FlightPlan {
             log_dir: &dir,
             log: LogSettings::from_config(&LogConfig::default(), &[]),
-            devices: Devices::Sim(Box::new(SimWorld::from_scenario(&scenario, Some(3)))),
+            devices: Devices::Sim(Box::new(
+                SimWorld::from_scenario(&scenario, Some(3)).expect("the built-in plant"),
+            )),
             link: Some(LinkPlan {
                 key: Some(key),
                 commands: "127.0.0.1:0".parse().expect("address"),

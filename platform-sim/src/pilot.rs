@@ -285,6 +285,25 @@ fn column(r: &Mat3, i: usize) -> Vec3 {
 }
 
 impl Pilot {
+    /// Flies from `trim` (commands for level flight at `cruise_airspeed_mps`, pitch
+    /// `trim_pitch_rad`) instead of the Aerosonde's: another airplane's trim (JSBSim's).
+    /// The speeds the pilot keeps scale with the cruise speed.
+    pub fn retrim(
+        &mut self,
+        trim: ActuatorCommands,
+        trim_pitch_rad: f64,
+        cruise_airspeed_mps: f64,
+    ) {
+        let k = cruise_airspeed_mps / self.config.cruise_airspeed_mps;
+        self.config.cruise_airspeed_mps = cruise_airspeed_mps;
+        self.config.approach_airspeed_mps *= k;
+        self.config.min_airspeed_mps *= k;
+        self.config.loop_entry_airspeed_mps *= k;
+        self.airspeed_mps = cruise_airspeed_mps;
+        self.trim = trim;
+        self.trim_pitch_rad = trim_pitch_rad;
+    }
+
     pub fn new(params: &AircraftParams, config: PilotConfig) -> Self {
         // A pilot who cannot trim at cruise (a broken airframe model) still flies, badly, with
         // the Aerosonde's known trim.

@@ -20,7 +20,7 @@ pub const FAILSAFE_TIMEOUT_NS: u64 = 100_000_000;
 
 /// What the radio receiver gives the board.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct PilotInput {
+pub struct TransmitterInput {
     pub sticks: ActuatorCommands,
     pub switch: SwitchPosition,
 }
@@ -37,15 +37,15 @@ pub enum OutputSource {
 
 /// What the board reports to the flight computer.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct BoardStatus {
-    pub pilot: PilotInput,
+pub struct BoardReport {
+    pub pilot: TransmitterInput,
     pub source: OutputSource,
     pub avionics_voltage_v: f64,
     pub propulsion_voltage_v: f64,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
-struct ComputerCommand {
+struct LatchedCommand {
     commands: ActuatorCommands,
     autopilot_ready: bool,
     received_at_ns: u64,
@@ -54,7 +54,7 @@ struct ComputerCommand {
 /// The board's state: the computer's latest command and what the servos were last given.
 #[derive(Debug, Clone, Default)]
 pub struct ServoBoard {
-    computer: Option<ComputerCommand>,
+    computer: Option<LatchedCommand>,
     last_source: Option<OutputSource>,
 }
 
@@ -70,7 +70,7 @@ impl ServoBoard {
         commands: ActuatorCommands,
         autopilot_ready: bool,
     ) {
-        self.computer = Some(ComputerCommand {
+        self.computer = Some(LatchedCommand {
             commands: commands.sanitized(),
             autopilot_ready,
             received_at_ns: now_ns,
@@ -94,7 +94,11 @@ impl ServoBoard {
     }
 
     /// The servo outputs at `now_ns` and who set them.
-    pub fn mix(&mut self, now_ns: u64, pilot: &PilotInput) -> (ActuatorCommands, OutputSource) {
+    pub fn mix(
+        &mut self,
+        now_ns: u64,
+        pilot: &TransmitterInput,
+    ) -> (ActuatorCommands, OutputSource) {
         let source = self.source(now_ns, pilot.switch);
         self.last_source = Some(source);
         let commands = match (source, self.computer) {
@@ -110,8 +114,13 @@ impl ServoBoard {
     }
 
     /// The report to the flight computer at `now_ns`.
-    pub fn status(&self, now_ns: u64, pilot: &PilotInput, battery: &BatterySample) -> BoardStatus {
-        BoardStatus {
+    pub fn status(
+        &self,
+        now_ns: u64,
+        pilot: &TransmitterInput,
+        battery: &BatterySample,
+    ) -> BoardReport {
+        BoardReport {
             pilot: *pilot,
             source: self.source(now_ns, pilot.switch),
             avionics_voltage_v: battery.avionics_voltage_v,
@@ -147,8 +156,8 @@ mod tests {
         }
     }
 
-    fn input(switch: SwitchPosition) -> PilotInput {
-        PilotInput {
+    fn input(switch: SwitchPosition) -> TransmitterInput {
+        TransmitterInput {
             sticks: sticks(),
             switch,
         }
@@ -246,7 +255,7 @@ mod tests {
         assert_eq!(out, wild.sanitized());
         let (out, _) = board.mix(
             0,
-            &PilotInput {
+            &TransmitterInput {
                 sticks: wild,
                 switch: SwitchPosition::Manual,
             },
@@ -265,7 +274,7 @@ mod tests {
         );
         let mut board = ServoBoard::new();
         let mut voltage_with = |throttle: f64, plant: &mut Plant| {
-            let pilot = PilotInput {
+            let pilot = TransmitterInput {
                 sticks: ActuatorCommands {
                     throttle,
                     brake: 1.0,

@@ -10,11 +10,14 @@
 //! `skyframe-sim --pty`.
 
 use crate::pilot::SwitchPosition;
-use crate::plant::sensors::{GpsFixType, GpsSample};
-use crate::plant::{ActuatorCommands, GeodeticPosition, Plant, Truth};
+use crate::plant::jsbsim::{JsbsimConfig, JsbsimModel, JsbsimStart};
+use crate::plant::sensors::{GpsFixType, SimGpsSolution};
+use crate::plant::{
+    ActuatorCommands, FlightModel, GeodeticPosition, Plant, PlantError, PlantKind, Truth,
+};
 pub use crate::scenario::Device;
-use crate::scenario::{Fault, FaultKind, Scenario, ScenarioPilot};
-use crate::servo_board::{OutputSource, PilotInput, ServoBoard};
+use crate::scenario::{Fault, FaultKind, InitialCondition, Scenario, ScenarioPilot};
+use crate::servo_board::{OutputSource, ServoBoard, TransmitterInput};
 use skyframe_core::devices::gps::{
     FixDimension, FixQuality, GpsFix, SentenceKind, Talker, encode_sentence,
 };
@@ -43,20 +46,20 @@ pub trait DeviceLink {
 
 /// Whoever holds the pilot's transmitter: sticks, brakes and the auto/manual switch.
 pub trait Transmitter {
-    fn update(&mut self, truth: &Truth) -> PilotInput;
+    fn update(&mut self, truth: &Truth) -> TransmitterInput;
 }
 
 impl Transmitter for ScenarioPilot {
-    fn update(&mut self, truth: &Truth) -> PilotInput {
+    fn update(&mut self, truth: &Truth) -> TransmitterInput {
         ScenarioPilot::update(self, truth)
     }
 }
 
 /// A transmitter whose sticks never move: enough for a trimmed airplane to fly straight.
-pub struct SteadySticks(pub PilotInput);
+pub struct SteadySticks(pub TransmitterInput);
 
 impl Transmitter for SteadySticks {
-    fn update(&mut self, _truth: &Truth) -> PilotInput {
+    fn update(&mut self, _truth: &Truth) -> TransmitterInput {
         self.0
     }
 }
@@ -119,8 +122,11 @@ pub struct WorldStats {
     pub computer_steps: u64,
 }
 
+/// The airplane whichever flight model flies it.
+pub type AnyPlant = Plant<Box<dyn FlightModel>>;
+
 pub struct SimWorld {
-    plant: Plant,
+    plant: AnyPlant,
     transmitter: Box<dyn Transmitter + Send>,
     board: ServoBoard,
     imu: ImuStreamEncoder,
@@ -128,7 +134,7 @@ pub struct SimWorld {
     next_board_ns: u64,
     board_counter: u8,
     commands: ServoCommandDecoder,
-    pilot_input: PilotInput,
+    pilot_input: TransmitterInput,
     scheduled_faults: Vec<Fault>,
     /// The scheduled faults come round again every this many seconds (a soak); `None`: once.
     fault_period_s: Option<f64>,
@@ -138,7 +144,11 @@ pub struct SimWorld {
 }
 
 impl SimWorld {
-    pub fn new(plant: Plant, transmitter: Box<dyn Transmitter + Send>) -> Self {
+    pub fn new<M: FlightModel + 'static>(
+        plant: Plant<M>,
+        transmitter: Box<dyn Transmitter + Send>,
+    ) -> Self {
+        let plant = plant.boxed();
         let start = plant.time_ns();
         Self {
             plant,
@@ -149,7 +159,7 @@ impl SimWorld {
             next_board_ns: start,
             board_counter: 0,
             commands: ServoCommandDecoder::new(u64::MAX),
-            pilot_input: PilotInput::default(),
+            pilot_input: TransmitterInput::default(),
             scheduled_faults: Vec::new(),
             fault_period_s: None,
             faults: DeviceFaults::default(),
@@ -158,16 +168,62 @@ impl SimWorld {
         }
     }
 
-    /// The world of a scenario: its airplane, wind, GPS, pilot and faults; `seed` overrides
-    /// the scenario's.
-    pub fn from_scenario(scenario: &Scenario, seed: Option<u64>) -> Self {
+    /// The world of a scenario: its airplane (on the scenario's plant), wind, GPS, pilot and
+    /// faults; `seed` overrides the scenario's. Fails only when JSBSim cannot start.
+    pub fn from_scenario(scenario: &Scenario, seed: Option<u64>) -> Result<Self, PlantError> {
+        Self::from_scenario_on(scenario, seed, &scenario.plant)
+    }
+
+    /// [`from_scenario`](Self::from_scenario) on `plant` instead of the scenario's.
+    pub fn from_scenario_on(
+        scenario: &Scenario,
+        seed: Option<u64>,
+        plant: &PlantKind,
+    ) -> Result<Self, PlantError> {
+        let seed = seed.unwrap_or(scenario.seed);
         let config = scenario.plant_config();
-        let initial = scenario.initial_state(&config.params);
-        let pilot = ScenarioPilot::new(scenario, &config.params);
-        let plant = Plant::with_config(config, initial, seed.unwrap_or(scenario.seed));
+        let (plant, pilot) = match plant {
+            PlantKind::BuiltIn => {
+                let initial = scenario.initial_state(&config.params);
+                let pilot = ScenarioPilot::new(scenario, &config.params);
+                (Plant::with_config(config, initial, seed).boxed(), pilot)
+            }
+            PlantKind::Jsbsim { aircraft } => {
+                let start = match scenario.initial {
+                    InitialCondition::OnRunway { heading_rad } => {
+                        JsbsimStart::OnRunway { heading_rad }
+                    }
+                    InitialCondition::InFlight {
+                        altitude_m,
+                        airspeed_mps,
+                        heading_rad,
+                    } => JsbsimStart::InFlight {
+                        altitude_m,
+                        airspeed_mps,
+                        heading_rad,
+                    },
+                };
+                let cruise = match scenario.initial {
+                    InitialCondition::InFlight { airspeed_mps, .. } => Some(airspeed_mps),
+                    InitialCondition::OnRunway { .. } => scenario.pilot_cruise_airspeed_mps,
+                };
+                let jsbsim = JsbsimConfig {
+                    trim_airspeed_mps: cruise,
+                    ..JsbsimConfig::new(aircraft)
+                };
+                let model = JsbsimModel::start(jsbsim, &config, start, seed)?;
+                let mut pilot = ScenarioPilot::new(scenario, &config.params);
+                if let (Some((trim, pitch)), Some(cruise)) = (model.trim(), cruise) {
+                    // The scripted pilot knows the Aerosonde; on another airplane it flies
+                    // from the trim JSBSim found, at the scenario's cruise speed.
+                    pilot.retrim(trim, pitch, cruise);
+                }
+                (Plant::with_model(config, model, seed).boxed(), pilot)
+            }
+        };
         let mut world = Self::new(plant, Box::new(pilot));
         world.scheduled_faults = scenario.faults.clone();
-        world
+        Ok(world)
     }
 
     pub fn truth(&self) -> Truth {
@@ -188,7 +244,7 @@ impl SimWorld {
     }
 
     /// What the pilot is doing with the transmitter.
-    pub fn pilot_input(&self) -> PilotInput {
+    pub fn pilot_input(&self) -> TransmitterInput {
         self.pilot_input
     }
 
@@ -224,7 +280,13 @@ impl SimWorld {
             if source == OutputSource::Computer {
                 self.stats.computer_steps += 1;
             }
-            self.plant.step(PLANT_STEP_NS as f64 * 1e-9, &actuators);
+            if let Err(e) = self.plant.try_step(PLANT_STEP_NS as f64 * 1e-9, &actuators) {
+                // The airplane is gone (JSBSim's process died or talks garbage): nothing can
+                // fly on. The logs hold everything up to now (they survive `kill -9` by
+                // design), so stop here with one line rather than hang the executive.
+                eprintln!("skyframe: the simulated airplane stopped: {e}");
+                std::process::exit(3);
+            }
             let now = self.plant.time_ns();
             if now >= self.next_imu_ns {
                 self.next_imu_ns += IMU_PERIOD_NS;
@@ -336,13 +398,13 @@ impl SimWorld {
         self.garbage(Device::Imu, link);
     }
 
-    fn send_gps(&mut self, sample: &GpsSample, link: &mut dyn DeviceLink) {
+    fn send_gps(&mut self, sample: &SimGpsSolution, link: &mut dyn DeviceLink) {
         if self.silent(Device::Gps) {
             return;
         }
         let fix = gps_fix(sample, self.faults.gps_loss);
         let mut buf = [0u8; 160];
-        // POS last: the receiver is configured to end each epoch with it (GpsConfig).
+        // POS last: the receiver is configured to end each epoch with it (core's `devices::gps::GpsConfig`).
         for kind in [
             SentenceKind::Gga,
             SentenceKind::Rmc,
@@ -398,7 +460,7 @@ impl SimWorld {
 }
 
 /// The receiver's solution as the sentences will carry it.
-pub fn gps_fix(sample: &GpsSample, forced_loss: bool) -> GpsFix {
+pub fn gps_fix(sample: &SimGpsSolution, forced_loss: bool) -> GpsFix {
     let valid = sample.fix == GpsFixType::Fix3d && !forced_loss;
     let utc_ms = (UTC_START_MS + (sample.valid_at_s * 1000.0).round().max(0.0) as u64) % 86_400_000;
     let [vn, ve, vd] = sample.velocity_ned_mps;

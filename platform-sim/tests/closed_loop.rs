@@ -17,14 +17,14 @@ use skyframe_core::estimation::nalgebra;
 use skyframe_core::estimation::{Estimator, EstimatorConfig};
 use skyframe_sim::plant::trim::trim_level_flight;
 use skyframe_sim::plant::{
-    ActuatorCommands, AircraftParams, DrydenParams, GpsConfig, GpsFixType, GpsSample, Plant,
-    PlantConfig, WindConfig,
+    ActuatorCommands, AircraftParams, DrydenParams, GpsFixType, Plant, PlantConfig, SimGpsConfig,
+    SimGpsSolution, WindConfig,
 };
 use std::time::Instant;
 
 const DT: f64 = 0.01;
 
-fn fix_of(s: &GpsSample) -> GpsFix {
+fn fix_of(s: &SimGpsSolution) -> GpsFix {
     let v = s.velocity_ned_mps;
     let speed = (v[0] * v[0] + v[1] * v[1]).sqrt();
     GpsFix {
@@ -79,17 +79,17 @@ impl Rms {
 #[test]
 #[cfg_attr(debug_assertions, ignore)]
 fn estimator_and_autopilot_fly_the_aerosonde() {
-    fly(GpsConfig::nominal_10hz(), "nominal 10 Hz receiver");
+    fly(SimGpsConfig::nominal_10hz(), "nominal 10 Hz receiver");
 }
 
 /// The seed's receiver (thesis §6.1.2): 140 ms mean interval with 300 ms peaks.
 #[test]
 #[cfg_attr(debug_assertions, ignore)]
 fn estimator_and_autopilot_fly_the_aerosonde_with_the_seed_receiver() {
-    fly(GpsConfig::seed_receiver(), "seed receiver");
+    fly(SimGpsConfig::seed_receiver(), "seed receiver");
 }
 
-fn fly(gps: GpsConfig, label: &str) {
+fn fly(gps: SimGpsConfig, label: &str) {
     println!("--- {label}");
     let params = AircraftParams::aerosonde();
     let trim = trim_level_flight(&params, 25.0, 100.0, 0.0).expect("trim");

@@ -13,6 +13,7 @@ use crate::vehicle::VehicleConfig;
 use clap::{Args, Parser, Subcommand};
 use skyframe_core::executive::{FaultPlan, OverrunInjection};
 use skyframe_core::schedule::{FrameTable, SHIPPED};
+use skyframe_sim::plant::PlantKind;
 use skyframe_sim::scenario::{FaultKind, Scenario};
 use skyframe_sim::world::SimWorld;
 use std::path::{Path, PathBuf};
@@ -321,6 +322,14 @@ pub struct SimArgs {
     /// With --score: leave out the ahrs reference filters.
     #[arg(long, requires = "score")]
     pub no_reference_filters: bool,
+    /// The flight model: `builtin` (our 6-DOF Aerosonde) or `jsbsim` (needs python3 with the
+    /// jsbsim package). Default: the scenario's `[plant]`, else builtin.
+    #[arg(long, value_name = "builtin|jsbsim")]
+    pub plant: Option<String>,
+    /// JSBSim's aircraft (`c172x`, `J3Cub`, … or our `skyframe-uav`; alone it implies
+    /// `--plant jsbsim`); default: the scenario's, else c172x.
+    #[arg(long, value_name = "NAME")]
+    pub aircraft: Option<String>,
     #[command(flatten)]
     pub flight: FlightArgs,
 }
@@ -610,7 +619,23 @@ fn run<P: Platform>(platform: &P, command: Command) -> Result<ExitCode, String> 
                 None => Scenario::parse(DEFAULT_SCENARIO),
             }
             .map_err(|e| e.to_string())?;
-            let world = SimWorld::from_scenario(&scenario, args.seed);
+            // --plant and --aircraft override the scenario's `[plant]`; the scenario's
+            // aircraft stays only when the plant does; an aircraft other than ours alone
+            // means JSBSim.
+            let plant_name = match (args.plant.as_deref(), args.aircraft.as_deref()) {
+                (Some(plant), _) => plant,
+                (None, Some(a)) if a != "aerosonde" => "jsbsim",
+                (None, _) => scenario.plant.plant_name(),
+            };
+            let aircraft = args
+                .aircraft
+                .as_deref()
+                .or((plant_name == scenario.plant.plant_name()
+                    && scenario.plant != PlantKind::BuiltIn)
+                    .then(|| scenario.plant.aircraft_name()));
+            let plant = PlantKind::from_names(plant_name, aircraft)?;
+            let world = SimWorld::from_scenario_on(&scenario, args.seed, &plant)
+                .map_err(|e| e.to_string())?;
             let mut flight = args.flight;
             flight.duration = flight.duration.or(Some(scenario.duration_s));
             flight
@@ -726,7 +751,7 @@ fn soak<P: Platform>(platform: &P, args: SoakArgs) -> Result<ExitCode, String> {
     }
     let period_s = scenario.duration_s;
     let duration_s = args.hours * 3600.0;
-    let mut world = SimWorld::from_scenario(&scenario, args.seed);
+    let mut world = SimWorld::from_scenario(&scenario, args.seed).map_err(|e| e.to_string())?;
     world.repeat_faults_every(period_s);
     let minor = SHIPPED.minor_frame_ns;
     let period_frames = (period_s * 1e9 / minor as f64).round() as u64;

@@ -39,6 +39,80 @@ struct Args {
     /// Write a vehicle file naming the three ports, for `skyframe run --vehicle`.
     #[arg(long, value_name = "FILE")]
     write_vehicle: Option<PathBuf>,
+    /// Benchmark a flight model instead: trimmed level flight stepped as the world steps it
+    /// (1 ms, an IMU reading every 10 ms), as fast as it goes; prints JSON. Meaningful on a
+    /// release build.
+    #[arg(long, value_name = "builtin|jsbsim", conflicts_with = "pty")]
+    bench_plant: Option<String>,
+    /// With --bench-plant jsbsim: the aircraft (default c172x).
+    #[arg(long, value_name = "NAME", requires = "bench_plant")]
+    aircraft: Option<String>,
+    /// With --bench-plant: simulated seconds to fly (default 60).
+    #[arg(long, requires = "bench_plant")]
+    seconds: Option<f64>,
+}
+
+/// `--bench-plant`: simulated seconds per wall-clock second of a flight model with its
+/// sensors, the plant's share of a `skyframe sim --fast` run.
+fn bench_plant(name: &str, aircraft: Option<&str>, seconds: f64) -> Result<(), String> {
+    use skyframe_sim::plant::jsbsim::{JsbsimConfig, JsbsimModel, JsbsimStart};
+    use skyframe_sim::plant::trim::trim_level_flight;
+    use skyframe_sim::plant::{Plant, PlantConfig, PlantKind};
+    let kind = PlantKind::from_names(name, aircraft)?;
+    if !(seconds.is_finite() && seconds > 0.0 && seconds <= 86_400.0) {
+        return Err(format!("--seconds {seconds}: must be in (0, 86400]"));
+    }
+    let config = PlantConfig::default();
+    let (mut plant, commands) = match &kind {
+        PlantKind::BuiltIn => {
+            let trim = trim_level_flight(&config.params, 23.0, 100.0, 0.0)
+                .map_err(|e| format!("trim: {e:?}"))?;
+            (
+                Plant::with_config(config, trim.initial, 1).boxed(),
+                trim.commands,
+            )
+        }
+        PlantKind::Jsbsim { aircraft } => {
+            let start = JsbsimStart::InFlight {
+                altitude_m: 300.0,
+                airspeed_mps: if aircraft == "c172x" { 40.0 } else { 23.0 },
+                heading_rad: 0.0,
+            };
+            let model = JsbsimModel::start(JsbsimConfig::new(aircraft), &config, start, 1)
+                .map_err(|e| e.to_string())?;
+            let (commands, _) = model
+                .trim()
+                .ok_or("JSBSim gave no trim for the benchmark's level flight")?;
+            (Plant::with_model(config, model, 1).boxed(), commands)
+        }
+    };
+    let steps = (seconds * 1000.0).round() as u64;
+    let started = Instant::now();
+    for k in 0..steps {
+        plant
+            .try_step(0.001, &commands)
+            .map_err(|e| e.to_string())?;
+        if k % 10 == 9 {
+            std::hint::black_box(plant.sample_imu());
+        }
+        while plant.sample_gps().is_some() {}
+    }
+    let wall_s = started.elapsed().as_secs_f64();
+    let truth = plant.truth();
+    println!(
+        "{{\"plant\": \"{}\", \"aircraft\": \"{}\", \"build\": \"{}\", \"simulated_s\": {seconds}, \"wall_s\": {wall_s:.4}, \"times_real_time\": {:.1}, \"us_per_1ms_step\": {:.3}, \"final_airspeed_mps\": {:.2}}}",
+        kind.plant_name(),
+        kind.aircraft_name(),
+        if cfg!(debug_assertions) {
+            "debug"
+        } else {
+            "release"
+        },
+        seconds / wall_s,
+        wall_s * 1e6 / steps as f64,
+        truth.airspeed_mps,
+    );
+    Ok(())
 }
 
 const DEFAULT_SCENARIO: &str = include_str!("../../../scenarios/takeoff-circuit.toml");
@@ -100,6 +174,13 @@ fn pty() -> Result<(TTYPort, String), String> {
 }
 
 fn run(args: Args) -> Result<(), String> {
+    if let Some(plant) = &args.bench_plant {
+        return bench_plant(
+            plant,
+            args.aircraft.as_deref(),
+            args.seconds.unwrap_or(60.0),
+        );
+    }
     if !args.pty {
         return Err("nothing to do: pass --pty (in-process simulation is `skyframe sim`)".into());
     }
@@ -108,7 +189,7 @@ fn run(args: Args) -> Result<(), String> {
         None => Scenario::parse(DEFAULT_SCENARIO),
     }
     .map_err(|e| e.to_string())?;
-    let mut world = SimWorld::from_scenario(&scenario, args.seed);
+    let mut world = SimWorld::from_scenario(&scenario, args.seed).map_err(|e| e.to_string())?;
     let (imu, imu_path) = pty()?;
     let (gps, gps_path) = pty()?;
     let (servo, servo_path) = pty()?;

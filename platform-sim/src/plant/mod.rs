@@ -29,25 +29,30 @@
 //! ```
 
 pub mod dynamics;
+pub mod jsbsim;
 pub mod math;
+pub mod model;
 pub mod params;
 pub mod rng;
 pub mod sensors;
+pub mod sixdof;
 pub mod trim;
 pub mod wind;
 
 #[cfg(test)]
 mod tests;
 
-use dynamics::{AirMass, ControlInputs, ForcesAndMoments, RigidBodyState};
-use math::{Quat, Vec3, add, mat_vec, quat_from_euler, quat_to_euler, quat_to_rotation, scale};
+use dynamics::RigidBodyState;
+use math::{Quat, Vec3, quat_from_euler, quat_to_rotation};
+pub use model::{FlightModel, PlantError, PlantKind};
 pub use params::{AircraftParams, GRAVITY_MPS2};
 use rng::{NoiseRng, stream};
 pub use sensors::{
-    BatteryConfig, BatterySample, GeodeticPosition, GpsConfig, GpsFixType, GpsSample, ImuConfig,
-    ImuSample,
+    BatteryConfig, BatterySample, GeodeticPosition, GpsFixType, SimGpsConfig, SimGpsSolution,
+    SimImuConfig, SimImuReading,
 };
-use sensors::{BatteryModel, GpsModel, ImuModel};
+use sensors::{SimBatteries, SimGpsReceiver, SimImu};
+pub use sixdof::SixDofModel;
 pub use wind::{DrydenParams, WindConfig};
 
 /// What the autopilot (through the servo board) commands. Surfaces in [−1, 1], throttle and
@@ -179,6 +184,35 @@ pub struct Truth {
     pub height_above_ground_m: f64,
 }
 
+impl Truth {
+    /// Everything zero, level, at time zero: a placeholder until a model reports.
+    pub fn at_rest() -> Self {
+        Self {
+            t_s: 0.0,
+            position_ned_m: [0.0; 3],
+            velocity_ned_mps: [0.0; 3],
+            velocity_body_mps: [0.0; 3],
+            attitude: [1.0, 0.0, 0.0, 0.0],
+            roll_rad: 0.0,
+            pitch_rad: 0.0,
+            yaw_rad: 0.0,
+            rates_body_radps: [0.0; 3],
+            specific_force_body_mps2: [0.0, 0.0, -GRAVITY_MPS2],
+            airspeed_mps: 0.0,
+            alpha_rad: 0.0,
+            beta_rad: 0.0,
+            wind_ned_mps: [0.0; 3],
+            gust_body_mps: [0.0; 3],
+            thrust_n: 0.0,
+            motor_speed_radps: 0.0,
+            actuators: ActuatorCommands::default(),
+            on_ground: true,
+            airframe_strike: false,
+            height_above_ground_m: 0.0,
+        }
+    }
+}
+
 /// The longest RK4 step the plant takes, whatever `PlantConfig::max_step_s` asks for.
 pub const MAX_STEP_S: f64 = 0.01;
 
@@ -187,8 +221,8 @@ pub const MAX_STEP_S: f64 = 0.01;
 pub struct PlantConfig {
     pub params: AircraftParams,
     pub wind: WindConfig,
-    pub imu: ImuConfig,
-    pub gps: GpsConfig,
+    pub imu: SimImuConfig,
+    pub gps: SimGpsConfig,
     pub battery: BatteryConfig,
     /// Longest RK4 step (s); [`Plant::step`] splits a longer `dt` into equal sub-steps.
     pub max_step_s: f64,
@@ -205,8 +239,8 @@ impl Default for PlantConfig {
         Self {
             params: AircraftParams::aerosonde(),
             wind: WindConfig::calm(),
-            imu: ImuConfig::default(),
-            gps: GpsConfig::default(),
+            imu: SimImuConfig::default(),
+            gps: SimGpsConfig::default(),
             battery: BatteryConfig::default(),
             max_step_s: 0.001,
             surface_time_constant_s: 0.03,
@@ -215,28 +249,46 @@ impl Default for PlantConfig {
     }
 }
 
-/// The simulated airplane.
+/// The sensors on the airplane: IMU, GPS receiver and batteries, each with its own seeded
+/// noise stream. They read [`Truth`] alone, so they work the same on any [`FlightModel`].
 #[derive(Debug, Clone)]
-pub struct Plant {
-    config: PlantConfig,
-    state: RigidBodyState,
-    /// Plant time (ns), exact: sub-steps are whole nanoseconds.
-    time_ns: u64,
-    commands: ActuatorCommands,
-    /// Where the surfaces and the motor actually are (normalised); `None` until the first
-    /// command, which they take at once, so a run can start trimmed.
-    actuators: Option<ActuatorCommands>,
-    wind: wind::WindModel,
-    imu: ImuModel,
-    gps: GpsModel,
-    battery: BatteryModel,
-    /// Where each ground contact is held by static friction.
-    anchors: dynamics::ContactAnchors,
-    /// Forces at the current state, for the truth and the IMU.
-    forces: ForcesAndMoments,
+pub struct SensorSuite {
+    imu: SimImu,
+    gps: SimGpsReceiver,
+    battery: SimBatteries,
 }
 
-impl Plant {
+impl SensorSuite {
+    /// The sensors of `config` (its IMU, GPS and battery settings), drawn from `seed`.
+    pub fn new(config: &PlantConfig, seed: u64) -> Self {
+        Self {
+            imu: SimImu::new(config.imu, NoiseRng::new(seed, stream::IMU)),
+            gps: SimGpsReceiver::new(config.gps, NoiseRng::new(seed, stream::GPS)),
+            battery: SimBatteries::new(config.battery, NoiseRng::new(seed, stream::BATTERY)),
+        }
+    }
+
+    /// After `h_s` of flight ending at `truth`: the GPS sees the new position, the batteries
+    /// discharge for the throttle, the motor's current and the servos' effort.
+    fn after_step(&mut self, h_s: f64, truth: &Truth, motor_current_a: f64) {
+        self.gps
+            .update(truth.t_s, truth.position_ned_m, truth.velocity_ned_mps);
+        let a = truth.actuators;
+        let effort = a.aileron.abs() + a.elevator.abs() + a.rudder.abs();
+        self.battery.step(h_s, a.throttle, motor_current_a, effort);
+    }
+}
+
+/// The simulated airplane: a flight model (by default the built-in [`SixDofModel`]) and the
+/// sensors that read its truth.
+#[derive(Debug, Clone)]
+pub struct Plant<M = SixDofModel> {
+    config: PlantConfig,
+    model: M,
+    sensors: SensorSuite,
+}
+
+impl Plant<SixDofModel> {
     /// A plant with default sensors (MEMS IMU, 10 Hz GPS, Aerosonde batteries), 1 ms RK4.
     pub fn new(params: AircraftParams, initial: InitialState, wind: WindConfig, seed: u64) -> Self {
         Self::with_config(
@@ -250,24 +302,54 @@ impl Plant {
         )
     }
 
+    /// The built-in model of `config` at `initial`, every noise stream drawn from `seed`.
     pub fn with_config(config: PlantConfig, initial: InitialState, seed: u64) -> Self {
-        let state = initial.to_rigid_body();
-        let mut plant = Self {
-            wind: wind::WindModel::new(config.wind, NoiseRng::new(seed, stream::WIND)),
-            imu: ImuModel::new(config.imu, NoiseRng::new(seed, stream::IMU)),
-            gps: GpsModel::new(config.gps, NoiseRng::new(seed, stream::GPS)),
-            battery: BatteryModel::new(config.battery, NoiseRng::new(seed, stream::BATTERY)),
+        let model = SixDofModel::new(config.clone(), initial, seed);
+        Self::with_model(config, model, seed)
+    }
+
+    pub fn rigid_body_state(&self) -> &dynamics::RigidBodyState {
+        self.model.rigid_body_state()
+    }
+
+    /// The commands last applied (sanitised).
+    pub fn commands(&self) -> &ActuatorCommands {
+        self.model.commands()
+    }
+
+    /// Where the surfaces and the motor are now, normalised like the commands.
+    pub fn actuators(&self) -> ActuatorCommands {
+        self.model.actuators()
+    }
+
+    /// Advances the plant by `dt_s` (rounded to whole ns) with `commands` held, in RK4 sub-steps
+    /// of at most `max_step_s`. Wind, GPS and batteries advance once per sub-step.
+    pub fn step(&mut self, dt_s: f64, commands: &ActuatorCommands) {
+        // The built-in model cannot fail.
+        let _ = self.try_step(dt_s, commands);
+    }
+}
+
+impl<M: FlightModel> Plant<M> {
+    /// `model` with the sensors of `config` (IMU, GPS, batteries), drawn from `seed`.
+    pub fn with_model(config: PlantConfig, model: M, seed: u64) -> Self {
+        Self {
+            sensors: SensorSuite::new(&config, seed),
             config,
-            state,
-            time_ns: 0,
-            commands: ActuatorCommands::default(),
-            actuators: None,
-            anchors: Vec::new(),
-            forces: ForcesAndMoments::default(),
-        };
-        plant.update_anchors();
-        plant.forces = plant.current_forces();
-        plant
+            model,
+        }
+    }
+
+    /// The same plant with its model behind a `Box<dyn FlightModel>` (the world holds any).
+    pub fn boxed(self) -> Plant<Box<dyn FlightModel>>
+    where
+        M: 'static,
+    {
+        Plant {
+            config: self.config,
+            model: Box::new(self.model),
+            sensors: self.sensors,
+        }
     }
 
     pub fn config(&self) -> &PlantConfig {
@@ -278,197 +360,69 @@ impl Plant {
         &self.config.params
     }
 
+    pub fn model(&self) -> &M {
+        &self.model
+    }
+
     pub fn time_ns(&self) -> u64 {
-        self.time_ns
+        self.model.time_ns()
     }
 
     pub fn time_s(&self) -> f64 {
-        self.time_ns as f64 * 1e-9
+        self.time_ns() as f64 * 1e-9
     }
 
-    pub fn rigid_body_state(&self) -> &RigidBodyState {
-        &self.state
-    }
-
-    /// The commands last applied (sanitised).
-    pub fn commands(&self) -> &ActuatorCommands {
-        &self.commands
-    }
-
-    /// Where the surfaces and the motor are now, normalised like the commands.
-    pub fn actuators(&self) -> ActuatorCommands {
-        self.actuators.unwrap_or(self.commands)
-    }
-
-    /// Moves the actuators towards the commands over `h` seconds (exact first-order lag).
-    fn move_actuators(&mut self, h: f64) {
-        let target = self.commands;
-        let Some(a) = self.actuators.as_mut() else {
-            self.actuators = Some(target);
-            return;
-        };
-        let follow = |tau: f64| {
-            if tau > 0.0 {
-                1.0 - (-h / tau).exp()
-            } else {
-                1.0
-            }
-        };
-        let ks = follow(self.config.surface_time_constant_s);
-        let kt = follow(self.config.throttle_time_constant_s);
-        a.aileron += ks * (target.aileron - a.aileron);
-        a.elevator += ks * (target.elevator - a.elevator);
-        a.rudder += ks * (target.rudder - a.rudder);
-        a.throttle += kt * (target.throttle - a.throttle);
-        a.brake = target.brake;
-    }
-
-    fn air_mass(&self) -> AirMass {
-        AirMass {
-            steady_wind_ned_mps: self.wind.steady_ned_mps(),
-            gust_body_mps: self.wind.gust_body_mps(),
-        }
-    }
-
-    fn control_inputs(&self) -> ControlInputs {
-        let c = self.actuators();
-        ControlInputs::from_commands(
-            &self.config.params,
-            c.aileron,
-            c.elevator,
-            c.rudder,
-            c.throttle,
-            c.brake,
-        )
-    }
-
-    fn current_forces(&self) -> ForcesAndMoments {
-        dynamics::forces_and_moments(
-            &self.config.params,
-            &self.state,
-            &self.control_inputs(),
-            &self.air_mass(),
-            &self.anchors,
-        )
-    }
-
-    fn update_anchors(&mut self) {
-        let u = self.control_inputs();
-        dynamics::update_contact_anchors(&self.config.params, &self.state, &u, &mut self.anchors);
-    }
-
-    /// Advances the plant by `dt_s` (rounded to whole ns) with `commands` held, in RK4 sub-steps
-    /// of at most `max_step_s`. Wind, GPS and batteries advance once per sub-step.
-    pub fn step(&mut self, dt_s: f64, commands: &ActuatorCommands) {
-        self.commands = commands.sanitized();
-        let dt_ns = (dt_s.max(0.0) * 1e9).round() as u64;
-        if dt_ns == 0 {
-            return;
-        }
-        let max_step_s = self.config.max_step_s.min(MAX_STEP_S);
-        let max_ns = ((max_step_s * 1e9).round() as u64).max(1);
-        let substeps = dt_ns.div_ceil(max_ns);
-        let mut done_ns = 0;
-        for k in 0..substeps {
-            // Spread the remainder so the sub-steps add up to exactly dt.
-            let end_ns = dt_ns * (k + 1) / substeps;
-            let h_ns = end_ns - done_ns;
-            done_ns = end_ns;
+    /// Advances the plant by `dt_s` (rounded to whole ns) with `commands` held, in sub-steps
+    /// of at most `max_step_s`; the GPS and batteries advance once per sub-step. A model that
+    /// can no longer fly (JSBSim's process gone) says why.
+    pub fn try_step(&mut self, dt_s: f64, commands: &ActuatorCommands) -> Result<(), PlantError> {
+        let commands = commands.sanitized();
+        for h_ns in sixdof::substeps_ns(dt_s, self.config.max_step_s) {
             let h = h_ns as f64 * 1e-9;
-            self.move_actuators(h);
-            let u = self.control_inputs();
-            let a = self.actuators();
-            let effort = a.aileron.abs() + a.elevator.abs() + a.rudder.abs();
-            self.wind.step(h, self.forces.air.airspeed_mps);
-            self.state = dynamics::rk4_step(
-                &self.config.params,
-                &self.state,
-                &u,
-                &self.air_mass(),
-                &self.anchors,
-                h,
-            );
-            self.update_anchors();
-            self.time_ns += h_ns;
-            self.forces = self.current_forces();
-            let t = self.time_s();
-            let r = quat_to_rotation(self.state.attitude);
-            let v_ned = mat_vec(&r, self.state.velocity_body_mps);
-            self.gps.update(t, self.state.position_ned_m, v_ned);
-            self.battery.step(
-                h,
-                u.throttle,
-                self.forces.propulsion.motor_current_a,
-                effort,
-            );
+            self.model.step(h, &commands)?;
+            let truth = self.model.truth();
+            let current = self.model.motor_current_a();
+            self.sensors.after_step(h, &truth, current);
         }
+        Ok(())
     }
 
     /// Ground truth now.
     pub fn truth(&self) -> Truth {
-        let s = &self.state;
-        let r = quat_to_rotation(s.attitude);
-        let [roll, pitch, yaw] = quat_to_euler(s.attitude);
-        let gust = self.wind.gust_body_mps();
-        let f = &self.forces;
-        Truth {
-            t_s: self.time_s(),
-            position_ned_m: s.position_ned_m,
-            velocity_ned_mps: mat_vec(&r, s.velocity_body_mps),
-            velocity_body_mps: s.velocity_body_mps,
-            attitude: s.attitude,
-            roll_rad: roll,
-            pitch_rad: pitch,
-            yaw_rad: yaw,
-            rates_body_radps: s.rates_body_radps,
-            specific_force_body_mps2: scale(
-                f.contact_and_aero_force_body_n,
-                1.0 / self.config.params.mass_kg,
-            ),
-            airspeed_mps: f.air.airspeed_mps,
-            alpha_rad: f.air.alpha_rad,
-            beta_rad: f.air.beta_rad,
-            wind_ned_mps: add(self.wind.steady_ned_mps(), mat_vec(&r, gust)),
-            gust_body_mps: gust,
-            thrust_n: f.propulsion.thrust_n,
-            motor_speed_radps: f.propulsion.motor_speed_radps,
-            actuators: self.actuators(),
-            on_ground: f.wheels_on_ground,
-            airframe_strike: f.airframe_on_ground,
-            height_above_ground_m: -s.position_ned_m[2],
-        }
+        self.model.truth()
     }
 
     /// An IMU reading now.
-    pub fn sample_imu(&mut self) -> ImuSample {
+    pub fn sample_imu(&mut self) -> SimImuReading {
         let t = self.time_s();
-        let specific_force = scale(
-            self.forces.contact_and_aero_force_body_n,
-            1.0 / self.config.params.mass_kg,
-        );
-        self.imu
-            .sample(t, self.state.rates_body_radps, specific_force)
+        let truth = self.model.truth();
+        self.sensors
+            .imu
+            .sample(t, truth.rates_body_radps, truth.specific_force_body_mps2)
     }
 
     /// The oldest GPS solution delivered by now, if any; call until `None` to drain.
-    pub fn sample_gps(&mut self) -> Option<GpsSample> {
+    pub fn sample_gps(&mut self) -> Option<SimGpsSolution> {
         let t = self.time_s();
-        self.gps.take(t)
+        self.sensors.gps.take(t)
     }
 
     /// A reading of both battery packs now.
     pub fn sample_battery(&mut self) -> BatterySample {
         let t = self.time_s();
-        self.battery.sample(t)
+        self.sensors.battery.sample(t)
     }
 
     /// True battery state (charge, polarisation, current, voltage) of (avionics, propulsion).
     pub fn battery_truth(&self) -> (sensors::PackState, sensors::PackState) {
-        (*self.battery.avionics(), *self.battery.propulsion())
+        (
+            *self.sensors.battery.avionics(),
+            *self.sensors.battery.propulsion(),
+        )
     }
 
     /// The IMU's true biases (gyro rad/s, accel m/s²), for checking estimators.
     pub fn imu_biases(&self) -> (Vec3, Vec3) {
-        self.imu.biases()
+        self.sensors.imu.biases()
     }
 }

@@ -387,9 +387,9 @@ fn gusty_config() -> PlantConfig {
             steady_ned_mps: [3.0, -2.0, 0.0],
             turbulence: Some(DrydenParams::moderate_low_altitude()),
         },
-        gps: GpsConfig {
+        gps: SimGpsConfig {
             outage_probability: 0.01,
-            ..GpsConfig::seed_receiver()
+            ..SimGpsConfig::seed_receiver()
         },
         ..PlantConfig::default()
     }
@@ -400,8 +400,8 @@ fn recorded_run(
     seed: u64,
 ) -> (
     Vec<Truth>,
-    Vec<ImuSample>,
-    Vec<GpsSample>,
+    Vec<SimImuReading>,
+    Vec<SimGpsSolution>,
     Vec<BatterySample>,
 ) {
     let trim = trimmed(25.0);
@@ -443,7 +443,7 @@ fn same_seed_gives_a_bit_identical_run() {
 #[test]
 fn gps_through_the_plant_keeps_its_mean_interval() {
     let cfg = PlantConfig {
-        gps: GpsConfig::seed_receiver(),
+        gps: SimGpsConfig::seed_receiver(),
         max_step_s: 0.01,
         ..PlantConfig::default()
     };
@@ -714,7 +714,7 @@ fn surfaces_lag_their_commands_and_bad_commands_are_neutral() {
 fn ideal_gps_reports_where_the_airplane_was_when_the_fix_was_valid() {
     let trim = trimmed(25.0);
     let cfg = PlantConfig {
-        gps: GpsConfig::ideal(),
+        gps: SimGpsConfig::ideal(),
         max_step_s: 0.01,
         ..PlantConfig::default()
     };

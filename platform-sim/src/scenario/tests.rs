@@ -1,6 +1,9 @@
 //! Scenario parsing, and the shipped scenarios flown by the scripted pilot alone.
 
 use super::*;
+use crate::pilot::{Direction, Pilot, PilotConfig};
+use crate::plant::{ActuatorCommands, PlantKind, Truth};
+use crate::servo_board::OutputSource;
 
 const TAKEOFF_CIRCUIT: &str = include_str!("../../../scenarios/takeoff-circuit.toml");
 const FAULTS: &str = include_str!("../../../scenarios/faults.toml");
@@ -200,7 +203,7 @@ fn board_gives_a_ready_computer_the_servos_on_auto_and_the_pilot_when_it_dies() 
     let trim = crate::plant::trim::trim_level_flight(&params, 23.0, 100.0, 0.0).expect("trim");
     let dies_at_s = 154.0;
     let computer = |t: &Truth| {
-        (t.t_s < dies_at_s).then(|| ComputerCommand {
+        (t.t_s < dies_at_s).then(|| StandInCommand {
             commands: ActuatorCommands {
                 aileron: -1.5 * t.roll_rad - 0.25 * t.rates_body_radps[0],
                 elevator: trim.commands.elevator + 2.5 * (trim.pitch_rad + 0.05 - t.pitch_rad)
@@ -767,5 +770,53 @@ mod robustness {
                 prop_assert!(e.line <= damaged.lines().count() + 1, "{}", text);
             }
         }
+    }
+}
+
+#[test]
+fn the_plant_table_names_the_flight_model() {
+    assert_eq!(parse(MINIMAL).plant, PlantKind::BuiltIn);
+    let s = parse("duration_s = 10\n[plant]\nkind = \"jsbsim\"\n");
+    assert_eq!(
+        s.plant,
+        PlantKind::Jsbsim {
+            aircraft: "c172x".into()
+        }
+    );
+    let s = parse(
+        "duration_s = 10\n[plant]\nkind = \"jsbsim\"\naircraft = \"J3Cub\"\ncruise_airspeed_mps = 25\n",
+    );
+    assert_eq!(
+        s.plant,
+        PlantKind::Jsbsim {
+            aircraft: "J3Cub".into()
+        }
+    );
+    assert_eq!(s.pilot_cruise_airspeed_mps, Some(25.0));
+    for (src, line, expected) in [
+        (
+            "duration_s = 10\n[plant]\nkind = \"xplane\"\n",
+            3,
+            "unknown plant \"xplane\"",
+        ),
+        (
+            "duration_s = 10\n[plant]\nkind = \"builtin\"\naircraft = \"c172x\"\n",
+            3,
+            "flies only \"aerosonde\"",
+        ),
+        (
+            "duration_s = 10\n[plant]\nkind = \"jsbsim\"\naircraft = \"../../etc\"\n",
+            4,
+            "`aircraft` must be a name",
+        ),
+        (
+            "duration_s = 10\n[plant]\nkind = \"jsbsim\"\ncruise_airspeed_mps = 500\n",
+            4,
+            "cruise_airspeed_mps",
+        ),
+    ] {
+        let e = Scenario::parse(src).expect_err(src);
+        assert_eq!(e.line, line, "{e}");
+        assert!(e.message.contains(expected), "{e}");
     }
 }
