@@ -169,6 +169,7 @@ fn a_task_added_through_the_registry_is_analysed_flown_logged_converted_and_sent
             mission: None,
             registry: &registry,
             mavlink: None,
+            parameters: Vec::new(),
             options: RunOptions::new(Some(Duration::from_secs(20)), &stop),
         },
     )

@@ -165,6 +165,12 @@ pub struct FlightArgs {
     /// (default: warn and fly).
     #[arg(long)]
     pub refuse_late_timer: bool,
+
+    /// Set a flight-computer parameter before the flight, as the ground's `set` would (same
+    /// names and ranges; `skyframe-ground params` lists them): NAME=VALUE, repeatable. A
+    /// scenario's `[parameters]` are applied first, these after.
+    #[arg(long = "param", value_name = "NAME=VALUE", value_parser = parse_param)]
+    pub param: Vec<(String, f64)>,
     #[command(flatten)]
     pub link: LinkArgs,
     #[command(flatten)]
@@ -471,6 +477,22 @@ fn parse_megabytes(text: &str) -> Result<f64, String> {
     number_within(text, 0.01, 1024.0, "megabytes")
 }
 
+/// `NAME=VALUE` of `--param`; the name and range are checked against the parameter table
+/// when the flight starts.
+pub fn parse_param(text: &str) -> Result<(String, f64), String> {
+    let (name, value) = text
+        .split_once('=')
+        .ok_or_else(|| format!("`{text}`: expected NAME=VALUE, e.g. control.roll_kp=1.2"))?;
+    let value: f64 = value
+        .trim()
+        .parse()
+        .map_err(|_| format!("`{text}`: the value is not a number"))?;
+    if !value.is_finite() {
+        return Err(format!("`{text}`: the value is not finite"));
+    }
+    Ok((name.trim().to_string(), value))
+}
+
 pub fn parse_injection(text: &str) -> Result<Injection, String> {
     let bad = || format!("`{text}` is not TASK:EXTRA_US@FROM..TO (e.g. imu:12000@100..110)");
     let (task, rest) = text.split_once(':').ok_or_else(bad)?;
@@ -638,6 +660,13 @@ fn run<P: Platform>(platform: &P, command: Command) -> Result<ExitCode, String> 
                 .map_err(|e| e.to_string())?;
             let mut flight = args.flight;
             flight.duration = flight.duration.or(Some(scenario.duration_s));
+            // The scenario's airplane gains first; the command line's win.
+            flight.param = scenario
+                .parameters
+                .iter()
+                .cloned()
+                .chain(flight.param)
+                .collect();
             flight
                 .inject_overrun
                 .extend(scenario_overruns(&scenario, SHIPPED.minor_frame_ns));
@@ -948,6 +977,7 @@ fn fly_with<P: Platform>(
         FlightPlan {
             log_dir: args.log_dir.as_deref().unwrap_or(&log.dir),
             registry: crate::tasks::REGISTRY,
+            parameters: args.param.clone(),
             log: LogSettings {
                 free_space,
                 require_space: args.require_log_space,

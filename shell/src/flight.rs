@@ -19,6 +19,8 @@ use skyframe_core::control::mode::FlightMode;
 use skyframe_core::devices::DecoderStats;
 use skyframe_core::executive::Task;
 use skyframe_core::link::ingress::IngressCounters;
+use skyframe_core::link::messages::{Name, Value, ValueType};
+use skyframe_core::link::params::{ParamTable, SetParamResult};
 use skyframe_core::schedule::FrameTable;
 use skyframe_core::tasks::control::define_params;
 use skyframe_core::tasks::tap::Tap;
@@ -58,6 +60,9 @@ pub struct FlightPlan<'a> {
     pub mission: Option<Mission>,
     /// The tasks the schedule's names stand for ([`crate::tasks::REGISTRY`]).
     pub registry: &'a [TaskEntry],
+    /// Parameters set before the first frame (`--param`, a scenario's `[parameters]`),
+    /// through the same checks as the link's `set`.
+    pub parameters: Vec<(String, f64)>,
     pub options: RunOptions<'a>,
     /// The MAVLink endpoint (`--mavlink`); it needs `link` (see [`LinkPlan::network`]).
     pub mavlink: Option<crate::mavlink::MavlinkPlan>,
@@ -444,6 +449,7 @@ pub fn fly<P: Platform>(
     if let Ok(mut params) = shared.params.try_borrow_mut() {
         define_params(&mut params, &shared.control)
             .map_err(|e| format!("control parameters: {e:?}"))?;
+        set_parameters(&mut params, &plan.parameters)?;
     }
     let taps: Vec<Tap> = slots.iter().map(|_| Tap::new()).collect();
     let tap_refs: Vec<Option<&Tap>> = slots
@@ -667,6 +673,46 @@ fn check_log_space(plan: &FlightPlan<'_>, flight_dir: &Path) -> Result<(), Strin
     Ok(())
 }
 
+/// Sets each named parameter as the link's `set` would: a known name, a value of its type
+/// in its range. `Err` is one line naming the parameter (the flight does not start).
+pub fn set_parameters(table: &mut ParamTable, parameters: &[(String, f64)]) -> Result<(), String> {
+    for (name, value) in parameters {
+        let known = || {
+            let names: Vec<&str> = table.iter().map(|p| p.name().as_str()).collect();
+            format!(
+                "parameter `{name}`: no such parameter ({})",
+                names.join(", ")
+            )
+        };
+        let Some(param) = Name::new(name).and_then(|n| table.index_of(&n).map(|_| n)) else {
+            return Err(known());
+        };
+        let Some(in_table) = table.get(name) else {
+            return Err(known());
+        };
+        let typed = match in_table.value_type() {
+            ValueType::F32 => Value::F32(*value as f32),
+            ValueType::F64 => Value::F64(*value),
+            ValueType::I32 if value.fract() == 0.0 => Value::I32(*value as i32),
+            ValueType::U32 if value.fract() == 0.0 && *value >= 0.0 => Value::U32(*value as u32),
+            ValueType::Bool if *value == 0.0 || *value == 1.0 => Value::Bool(*value == 1.0),
+            other => {
+                return Err(format!("parameter `{name}` = {value}: not a {other:?}"));
+            }
+        };
+        let (min, max) = (in_table.min(), in_table.max());
+        match table.set(&param, typed) {
+            SetParamResult::Accepted { .. } => {}
+            _ => {
+                return Err(format!(
+                    "parameter `{name}` = {value}: outside its range [{min:?}, {max:?}]"
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
 /// `port` is the serial port's path and status; `None` for the simulator's in-process rings.
 fn device_report(
     name: &'static str,
@@ -761,4 +807,41 @@ pub fn render_flight(report: &FlightReport) -> String {
         out += &format!("  {}\n", f.display());
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use skyframe_core::tasks::control::{ControlSettings, define_params};
+
+    fn table() -> ParamTable {
+        let mut table = ParamTable::new();
+        define_params(&mut table, &ControlSettings::default()).expect("defines");
+        table
+    }
+
+    #[test]
+    fn parameters_are_set_through_the_tables_checks() {
+        let mut t = table();
+        set_parameters(&mut t, &[("control.roll_kp".into(), 0.8)]).expect("in range");
+        assert_eq!(
+            t.get("control.roll_kp").map(|p| p.value()),
+            Some(Value::F32(0.8))
+        );
+        let e = set_parameters(&mut t, &[("control.roll_kp".into(), 99.0)]).expect_err("range");
+        assert!(
+            e.starts_with("parameter `control.roll_kp` = 99: outside its range"),
+            "{e}"
+        );
+        // Refused: the value in force stays.
+        assert_eq!(
+            t.get("control.roll_kp").map(|p| p.value()),
+            Some(Value::F32(0.8))
+        );
+        let e = set_parameters(&mut t, &[("control.nosuch".into(), 1.0)]).expect_err("unknown");
+        assert!(
+            e.starts_with("parameter `control.nosuch`: no such parameter (control.roll_kp, "),
+            "{e}"
+        );
+    }
 }

@@ -19,6 +19,11 @@ struct RawScenario {
     gps: Option<Spanned<RawGps>>,
     runway: Option<Spanned<RawRunway>>,
     plant: Option<Spanned<RawPlant>>,
+    /// The flight computer's parameters for this flight (`control.roll_kp = 1.2`): an
+    /// airplane's own gains. Names and ranges are the vehicle's to check (the shell applies
+    /// them through the parameter table, as the link's `set` does).
+    #[serde(default)]
+    parameters: std::collections::BTreeMap<String, f64>,
     #[serde(default)]
     timeline: Vec<Spanned<RawTimelineEntry>>,
     #[serde(default)]
@@ -302,6 +307,7 @@ impl Scenario {
             runway,
             plant,
             pilot_cruise_airspeed_mps,
+            parameters: raw.parameters.into_iter().collect(),
             timeline,
             faults,
         })

@@ -190,6 +190,8 @@ pub struct Scenario {
     /// The scripted pilot's cruise speed on the scenario's aircraft (`[plant]`), when it is not
     /// the Aerosonde's: the pilot flies from the trim the plant finds there.
     pub pilot_cruise_airspeed_mps: Option<f64>,
+    /// Flight-computer parameters set before the flight (`[parameters]`), by name.
+    pub parameters: Vec<(String, f64)>,
     /// In time order.
     pub timeline: Vec<TimelineEntry>,
     /// In start-time order.
