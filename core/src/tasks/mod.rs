@@ -1,4 +1,4 @@
-//! The tasks the schedule can name (the catalogue in `schedule/analysis.rs`), one module
+//! The tasks the schedule can name (registered in `shell/src/tasks.rs`), one module
 //! each, following the data: device tasks (`imu`, `gps`, `servo`) turn bytes into frames,
 //! publish them in latest-value slots and log them; `health` watches everyone; `logging`
 //! snapshots health; `estimator` turns IMU, GPS and horizon into an estimate; `control`
