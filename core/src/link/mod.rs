@@ -7,6 +7,7 @@
 //! - [`wire`]: bounded little-endian writer and reader;
 //! - [`frame`]: header, CRC-32, signing and the datagram as a whole;
 //! - [`messages`]: the typed messages in both directions;
+//! - [`senders`]: the sender ids of skyframe's own command senders;
 //! - [`params`]: the table of parameters the ground can read and set;
 //! - [`counters`]: what the link received, accepted, refused (and why) and sent;
 //! - [`auth`]: the key and its tags ([`auth::key`]), and the [`CommandGate`] with its replay
@@ -20,6 +21,7 @@ pub mod frame;
 pub mod ingress;
 pub mod messages;
 pub mod params;
+pub mod senders;
 pub mod telemetry;
 pub mod wire;
 

@@ -36,7 +36,7 @@ impl std::fmt::Debug for Secret {
 
 /// The skyframe link sender id the MAVLink endpoint's commands carry (ground stations pick
 /// from 1..=255; this one is documented so that nobody else uses it).
-pub const LINK_SENDER_ID: u8 = 250;
+pub const LINK_SENDER_ID: u8 = skyframe_core::link::senders::MAVLINK_ENDPOINT;
 
 /// Where MAVLink goes: the endpoint syntax of MAVProxy and ArduPilot's SITL.
 #[derive(Clone, Debug, PartialEq, Eq)]

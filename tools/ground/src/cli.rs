@@ -11,6 +11,7 @@ use crate::values::{ack_result_name, interval_ms_for_hz, parse_value, type_name,
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use skyframe_core::control::mode::FlightMode;
 use skyframe_core::link::messages::{Command, CommandAck, Name, Value, limits};
+use skyframe_core::link::senders;
 use skyframe_core::logfmt::Time;
 use std::io::Write;
 use std::net::SocketAddr;
@@ -52,7 +53,7 @@ pub struct Common {
     pub timeout: f64,
     /// This ground station's sender id in commands (1..=255; the vehicle keeps replay
     /// windows for up to 8 senders).
-    #[arg(long, global = true, default_value_t = 1, value_name = "N", value_parser = clap::value_parser!(u8).range(1..))]
+    #[arg(long, global = true, default_value_t = senders::GROUND_STATION, value_name = "N", value_parser = clap::value_parser!(u8).range(1..))]
     pub sender_id: u8,
     /// Where the last command sequence number per key is kept. Default:
     /// $SKYFRAME_GROUND_STATE, else $XDG_STATE_HOME/skyframe-ground, else ~/.local/state/skyframe-ground.

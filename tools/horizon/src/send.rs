@@ -35,8 +35,9 @@ pub struct SendArgs {
     /// How long to wait for that first telemetry datagram.
     #[arg(long, default_value_t = 10.0, value_name = "SECONDS")]
     pub wait: f64,
-    /// This ground station's sender id (1..=255).
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u8).range(1..))]
+    /// This sender's id in commands (1..=255); not `skyframe-ground`'s, so both can command
+    /// the same vehicle at once (`core/src/link/senders.rs`).
+    #[arg(long, default_value_t = skyframe_core::link::senders::HORIZON_DETECTOR, value_parser = clap::value_parser!(u8).range(1..))]
     pub sender_id: u8,
     /// The vehicle's run id, instead of learning it from telemetry.
     #[arg(long, requires = "vehicle_id")]
