@@ -2,6 +2,7 @@
 //! its tasks, and the report at the end. Slots whose task does not exist yet (estimator,
 //! control, telemetry until their issues land) hold idle tasks.
 
+use crate::executive_log::ExecutiveLog;
 use crate::host::{EXIT_STOPPED_STUCK, HostError, RunOptions, STOP_CLOSE_WAIT, run_executive};
 use crate::idle::idle_tasks;
 use crate::logwriter::{LogStream, LogWriter, StreamMode, StreamStatus, WriterConfig};
@@ -10,7 +11,6 @@ use crate::serial::{DevicePort, PortConfig, PortState, PortStatus, check_opens, 
 use crate::simflight::{SimPlatform, device_rings};
 use crate::summary::SummaryReport;
 use crate::tasks::{FlyingTask, LinkParts, Needs, Shared, TaskEntry, TaskReports, Wiring};
-use crate::timing_log::TimingLog;
 use crate::vehicle::VehicleConfig;
 use serde::Serialize;
 use skyframe_core::comm::LogHealthCell;
@@ -417,7 +417,7 @@ pub fn fly<P: Platform>(
             .duration_since(UNIX_EPOCH)
             .map_or(0, |d| u64::try_from(d.as_nanos()).unwrap_or(0))
     };
-    let mut timing = TimingLog::start(timing_stream, table, time_origin_ns, 0)?;
+    let mut timing = ExecutiveLog::start(timing_stream, table, time_origin_ns, 0)?;
     // The MAVLink endpoint, on the link's rings (docs/mavlink.md).
     if let (Some(mplan), Some(ends), Some((_, key, run_id, _, plan_link))) =
         (&plan.mavlink, mavlink_ends.take(), &link)

@@ -14,7 +14,7 @@
 pub mod csv;
 pub mod declare;
 pub mod format;
-pub mod frame_log;
+pub mod frame_records;
 pub mod printf;
 pub mod reader;
 pub mod record;
@@ -26,8 +26,8 @@ pub use csv::{
 };
 pub use declare::{LogField, LogRecord, MAX_RECORD_FIELDS, encode_record, record_values};
 pub use format::{Conversion, Field, FieldType, Flags, Format, FormatError, MAX_FIELDS};
-pub use frame_log::{
-    FrameLogFormat, decode_frame_record, encode_frame_record, frame_log_task_names,
+pub use frame_records::{
+    FrameRecordFormat, decode_frame_record, encode_frame_record, frame_record_task_names,
 };
 pub use printf::{
     ByteWrite, RenderError, Value, render_byte_array, render_byte_array_bytes, render_data_block,

@@ -318,13 +318,13 @@ fn frame_log_round_trip() {
         budget_ns: 1,
         on_overrun: OverrunPolicy::Log,
     };
-    let log = FrameLogFormat::new(&[slot("imu"), slot("gps")]).expect("builds");
+    let log = FrameRecordFormat::new(&[slot("imu"), slot("gps")]).expect("builds");
     assert_eq!(
         log.columns(),
         "frame,release_ns,start_latency_ns,work_ns,overhead_ns,missed_before,ran_mask,\
          over_budget_mask,over_frame_mask,skipped_mask,reset_mask,flags,exec_ns_imu,exec_ns_gps"
     );
-    assert!(FrameLogFormat::new(&[slot("a,b")]).is_err());
+    assert!(FrameRecordFormat::new(&[slot("a,b")]).is_err());
     let mut record = FrameRecord::empty();
     record.frame = 42;
     record.release_ns = 420_000_000;
@@ -357,7 +357,7 @@ fn frame_log_round_trip() {
             ..
         } => {
             let columns = std::str::from_utf8(text).expect("utf-8");
-            names = frame_log_task_names(columns)
+            names = frame_record_task_names(columns)
                 .expect("a frame log")
                 .map(String::from)
                 .collect();
@@ -370,15 +370,15 @@ fn frame_log_round_trip() {
     );
     assert_eq!(decoded, Some(record));
     assert_eq!(names, ["imu", "gps"]);
-    assert!(frame_log_task_names("frame,release_ns").is_none());
-    assert!(frame_log_task_names(&std::format!("{},x", log.columns())).is_none());
+    assert!(frame_record_task_names("frame,release_ns").is_none());
+    assert!(frame_record_task_names(&std::format!("{},x", log.columns())).is_none());
     let other = Format::parse("%llu,%llu").expect("valid");
     assert_eq!(decode_frame_record(&other, &[0; 16]), None);
 }
 
 #[test]
 fn shipped_table_has_a_frame_log_format() {
-    let log = FrameLogFormat::new(crate::schedule::SHIPPED.tasks).expect("builds");
+    let log = FrameRecordFormat::new(crate::schedule::SHIPPED.tasks).expect("builds");
     assert_eq!(log.task_count(), crate::schedule::SHIPPED.tasks.len());
 }
 

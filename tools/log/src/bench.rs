@@ -16,7 +16,7 @@ use std::process::Command;
 use std::time::Instant;
 
 use serde::Serialize;
-use skyframe_core::logfmt::frame_log::FRAME_FIXED_FORMAT;
+use skyframe_core::logfmt::frame_records::FRAME_FIXED_FORMAT;
 use skyframe_core::logfmt::{
     Format, Value, encode_begin_data, encode_data_block, encode_end_data, encode_format_comment,
     encode_format_definition,

@@ -6,7 +6,9 @@ use std::io;
 use std::path::{Path, PathBuf};
 
 use skyframe_core::executive::FrameRecord;
-use skyframe_core::logfmt::{Event, LogReader, Record, decode_frame_record, frame_log_task_names};
+use skyframe_core::logfmt::{
+    Event, LogReader, Record, decode_frame_record, frame_record_task_names,
+};
 
 /// A problem found while reading, as one stderr line.
 #[derive(Clone, Debug)]
@@ -68,7 +70,7 @@ impl FrameCollector {
                 Record::FormatComment { index, text } => {
                     let names = std::str::from_utf8(text)
                         .ok()
-                        .and_then(frame_log_task_names)
+                        .and_then(frame_record_task_names)
                         .map(|names| names.map(str::to_string).collect::<Vec<_>>());
                     if let Some(names) = names {
                         if self.tasks.is_empty() {

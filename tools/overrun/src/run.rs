@@ -322,14 +322,14 @@ mod tests {
 
     use skyframe_core::executive::FrameRecord;
     use skyframe_core::logfmt::{
-        FrameLogFormat, MAX_RECORD_LEN, encode_begin_data, encode_end_data, encode_frame_record,
+        FrameRecordFormat, MAX_RECORD_LEN, encode_begin_data, encode_end_data, encode_frame_record,
     };
     use skyframe_core::schedule::SHIPPED;
 
     use super::*;
 
     fn log_bytes(frames: u64) -> Vec<u8> {
-        let log = FrameLogFormat::new(SHIPPED.tasks).expect("format");
+        let log = FrameRecordFormat::new(SHIPPED.tasks).expect("format");
         let mut out = Vec::new();
         let mut buf = [0u8; MAX_RECORD_LEN];
         let n = encode_begin_data(&mut buf, 0).expect("begin");

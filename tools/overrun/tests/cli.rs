@@ -8,7 +8,7 @@ use serde_json::Value;
 use skyframe_core::executive::FrameRecord;
 use skyframe_core::executive::timing::flags;
 use skyframe_core::logfmt::{
-    DataBlockWriter, Format, FrameLogFormat, MAX_RECORD_LEN, encode_begin_data, encode_end_data,
+    DataBlockWriter, Format, FrameRecordFormat, MAX_RECORD_LEN, encode_begin_data, encode_end_data,
     encode_format_definition, encode_frame_record,
 };
 use skyframe_core::schedule::SHIPPED;
@@ -91,7 +91,7 @@ fn synthetic_frames() -> Vec<FrameRecord> {
 }
 
 fn executive_log(frames: &[FrameRecord]) -> Vec<u8> {
-    let log = FrameLogFormat::new(SHIPPED.tasks).expect("frame log format");
+    let log = FrameRecordFormat::new(SHIPPED.tasks).expect("frame log format");
     let mut out = Vec::new();
     append(&mut out, |b| encode_begin_data(b, 0).expect("begin"));
     append(&mut out, |b| {

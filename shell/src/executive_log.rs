@@ -1,10 +1,12 @@
-//! The executive's per-frame timing records, as a log stream in their own format (read back
-//! by `skyframe-log` and the frame-overrun report tool).
+//! The executive's log, `executive.bin`: one [`FrameRecord`] a minor frame (the frame's
+//! timing) in their own format, and the start-up timer check; read back by `skyframe-log`
+//! and the frame-overrun report tool. One name for each: the record is a frame record, the
+//! stream the executive log.
 
 use crate::host::{TimerCheck, TimingSink};
 use crate::logwriter::LogStream;
 use skyframe_core::executive::FrameRecord;
-use skyframe_core::logfmt::frame_log::{FrameLogFormat, encode_frame_record};
+use skyframe_core::logfmt::frame_records::{FrameRecordFormat, encode_frame_record};
 use skyframe_core::logfmt::record::{MAX_RECORD_LEN, encode_begin_data, encode_end_data};
 use skyframe_core::logfmt::{LogRecord, encode_record};
 use skyframe_core::schedule::FrameTable;
@@ -31,16 +33,16 @@ skyframe_core::log_record! {
     }
 }
 
-pub struct TimingLog {
+pub struct ExecutiveLog {
     stream: LogStream,
-    format: FrameLogFormat,
+    format: FrameRecordFormat,
     /// Log TIME = this + the executive's clock: wall clock on a vehicle, 0 in virtual time.
     time_origin_ns: u64,
     buf: Vec<u8>,
     last_t_ns: u64,
 }
 
-impl TimingLog {
+impl ExecutiveLog {
     /// Declares the format and begins the data.
     pub fn start(
         stream: LogStream,
@@ -49,7 +51,7 @@ impl TimingLog {
         t_ns: u64,
     ) -> Result<Self, String> {
         let format =
-            FrameLogFormat::new(table.tasks).map_err(|e| format!("timing log format: {e:?}"))?;
+            FrameRecordFormat::new(table.tasks).map_err(|e| format!("timing log format: {e:?}"))?;
         let mut log = Self {
             stream,
             format,
@@ -123,12 +125,12 @@ impl TimingLog {
     }
 }
 
-impl TimingSink for &mut TimingLog {
+impl TimingSink for &mut ExecutiveLog {
     fn frame(&mut self, record: &FrameRecord) {
         self.record(record);
     }
 
     fn timer_check(&mut self, check: &TimerCheck) {
-        TimingLog::timer_check(self, check);
+        ExecutiveLog::timer_check(self, check);
     }
 }

@@ -43,14 +43,14 @@ const COLUMNS_CAPACITY: usize =
 /// The frame log format of one frame table: format string, column names, parsed fields.
 #[derive(Clone, Debug)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct FrameLogFormat {
+pub struct FrameRecordFormat {
     format_text: String<FORMAT_CAPACITY>,
     columns: String<COLUMNS_CAPACITY>,
     format: Format,
     task_count: usize,
 }
 
-impl FrameLogFormat {
+impl FrameRecordFormat {
     /// Builds the format for the tasks of a frame table. Task names become column names, so
     /// they must be short identifiers (`[A-Za-z0-9_]`, at most [`MAX_TASK_NAME`] bytes).
     pub fn new(tasks: &[TaskSlot]) -> Result<Self, EncodeError> {
@@ -118,7 +118,7 @@ pub fn encode_frame_record(
     buf: &mut [u8],
     index: u8,
     t_ns: u64,
-    log: &FrameLogFormat,
+    log: &FrameRecordFormat,
     record: &FrameRecord,
 ) -> Result<usize, EncodeError> {
     let mut writer = DataBlockWriter::new(buf, index, t_ns, log.format())
@@ -142,7 +142,7 @@ pub fn encode_frame_record(
 
 /// The task names of a frame log, from its Format Comment; `None` when the columns are not a
 /// frame log's (the fixed columns first, then only `exec_ns_<task>` columns).
-pub fn frame_log_task_names(columns: &str) -> Option<impl Iterator<Item = &str>> {
+pub fn frame_record_task_names(columns: &str) -> Option<impl Iterator<Item = &str>> {
     let rest = columns.strip_prefix(FRAME_FIXED_COLUMNS)?;
     if !(rest.is_empty() || rest.starts_with(',')) {
         return None;
