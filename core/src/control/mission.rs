@@ -7,6 +7,7 @@
 //! of Beard & McLain (§10.3): `χ_c = γ + λ(π/2 + atan(k·(d − ρ)/ρ))`, where `γ` is the
 //! bearing from the centre, `d` the distance to it, `ρ` the radius, `λ` = +1 clockwise.
 
+use crate::angles::wrap_pi_f32;
 use heapless::Vec;
 
 pub const MAX_WAYPOINTS: usize = 32;
@@ -77,17 +78,6 @@ pub struct MissionProgress {
 /// Orbit gain `k` of the loiter law.
 const ORBIT_GAIN: f32 = 2.0;
 
-fn wrap(a: f32) -> f32 {
-    let two_pi = 2.0 * core::f32::consts::PI;
-    let mut a = libm::fmodf(a, two_pi);
-    if a > core::f32::consts::PI {
-        a -= two_pi;
-    } else if a <= -core::f32::consts::PI {
-        a += two_pi;
-    }
-    a
-}
-
 impl MissionProgress {
     pub fn restart(&mut self) {
         *self = Self::default();
@@ -124,7 +114,7 @@ impl MissionProgress {
             libm::atan2f(de, dn)
         };
         Some(Guidance {
-            course_rad: wrap(course),
+            course_rad: wrap_pi_f32(course),
             altitude_m: wp.altitude_m,
             airspeed_mps: wp.airspeed_mps,
             waypoint: u8::try_from(index).unwrap_or(u8::MAX),

@@ -133,11 +133,19 @@ pub fn toml_error_line(e: &toml::de::Error, text: &str) -> String {
     let message = e.message().trim();
     match e.span() {
         Some(span) => {
-            let before = text.get(..span.start).unwrap_or(text);
-            let line = before.matches('\n').count() + 1;
-            let column = before.len() - before.rfind('\n').map_or(0, |i| i + 1) + 1;
+            let (line, column) = line_column(text, span.start);
             std::format!("line {line}, column {column}: {message}")
         }
         None => message.to_string(),
     }
+}
+
+/// The 1-based line and column (in characters, as an editor counts) of byte `offset` of
+/// `text`: the one rule for every file skyframe reads (schedule, vehicle, scenario, mission).
+pub fn line_column(text: &str, offset: usize) -> (usize, usize) {
+    let offset = offset.min(text.len());
+    let before = text.get(..offset).unwrap_or(text);
+    let line = before.matches('\n').count() + 1;
+    let column = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+    (line, column)
 }

@@ -4,14 +4,7 @@
 use super::ScenarioError;
 use std::ops::Range;
 
-/// Line and column (1-based) of a byte offset.
-pub(super) fn line_column(src: &str, offset: usize) -> (usize, usize) {
-    let offset = offset.min(src.len());
-    let before = src.get(..offset).unwrap_or(src);
-    let line = before.matches('\n').count() + 1;
-    let column = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
-    (line, column)
-}
+pub(super) use skyframe_core::schedule::file::line_column;
 
 /// The text a table's keys are in: for an inline table its span; for a `[header]` table (whose
 /// span is the header alone) from the header to the next header or the end.
