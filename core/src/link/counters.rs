@@ -2,6 +2,7 @@
 
 use super::auth::gate::RejectReason;
 use super::wire::{Reader, WireError, Writer};
+use crate::logfmt::{LogRecord, Value};
 
 crate::log_record! {
     /// The link's counters, sent in every executive status and logged (`link.bin`) once a
@@ -47,29 +48,6 @@ crate::log_record! {
 pub const LINK_COUNTERS: usize = 16;
 
 impl LinkCounters {
-    /// The counters in wire order (`docs/link-protocol.md`), which is also the column order of
-    /// `link.bin`.
-    pub fn as_array(&self) -> [u32; LINK_COUNTERS] {
-        [
-            self.received,
-            self.accepted,
-            self.bad_crc,
-            self.malformed,
-            self.wrong_vehicle,
-            self.unsigned,
-            self.bad_signature,
-            self.wrong_run,
-            self.replayed,
-            self.too_many_senders,
-            self.out_of_range,
-            self.unknown_param,
-            self.wrong_type,
-            self.telemetry_sent,
-            self.telemetry_send_failed,
-            self.rate_limited,
-        ]
-    }
-
     /// Rejected commands of every kind.
     pub fn rejected(&self) -> u32 {
         [
@@ -90,8 +68,16 @@ impl LinkCounters {
         .fold(0u32, |sum, &count| sum.saturating_add(count))
     }
 
+    /// On the wire in the declaration's order, which is `link.bin`'s column order too
+    /// (`docs/link-protocol.md`).
     pub(crate) fn encode(&self, w: &mut Writer<'_>) -> Result<(), WireError> {
-        self.as_array().iter().try_for_each(|&c| w.u32(c))
+        let mut result = Ok(());
+        self.each_value(&mut |value| {
+            if let (Ok(()), Value::U32(count)) = (&result, value) {
+                result = w.u32(count);
+            }
+        });
+        result
     }
 
     pub(crate) fn decode(r: &mut Reader<'_>) -> Result<Self, WireError> {

@@ -203,39 +203,24 @@ impl<'a, S: RecordSink> EstimatorTask<'a, S> {
             healthy: e.health.healthy,
         };
         self.log.log(cx, STATE_INDEX, &state);
-        let [
-            sd_pn_m,
-            sd_pe_m,
-            sd_pd_m,
-            sd_vn_m_s,
-            sd_ve_m_s,
-            sd_vd_m_s,
-            sd_thn_rad,
-            sd_the_rad,
-            sd_thd_rad,
-            sd_bgx_rad_s,
-            sd_bgy_rad_s,
-            sd_bgz_rad_s,
-            sd_bax_m_s2,
-            sd_bay_m_s2,
-            sd_baz_m_s2,
-        ] = e.covariance_diag.map(|v| libm::sqrtf(v.max(0.0)));
+        let sd = e.covariance_diag.map(|v| libm::sqrtf(v.max(0.0)));
+        // The covariance diagonal is in the state order the columns follow.
         let sd = EstimatorSdLog {
-            sd_pn_m,
-            sd_pe_m,
-            sd_pd_m,
-            sd_vn_m_s,
-            sd_ve_m_s,
-            sd_vd_m_s,
-            sd_thn_rad,
-            sd_the_rad,
-            sd_thd_rad,
-            sd_bgx_rad_s,
-            sd_bgy_rad_s,
-            sd_bgz_rad_s,
-            sd_bax_m_s2,
-            sd_bay_m_s2,
-            sd_baz_m_s2,
+            sd_pn_m: sd[0],
+            sd_pe_m: sd[1],
+            sd_pd_m: sd[2],
+            sd_vn_m_s: sd[3],
+            sd_ve_m_s: sd[4],
+            sd_vd_m_s: sd[5],
+            sd_thn_rad: sd[6],
+            sd_the_rad: sd[7],
+            sd_thd_rad: sd[8],
+            sd_bgx_rad_s: sd[9],
+            sd_bgy_rad_s: sd[10],
+            sd_bgz_rad_s: sd[11],
+            sd_bax_m_s2: sd[12],
+            sd_bay_m_s2: sd[13],
+            sd_baz_m_s2: sd[14],
         };
         self.log.log(cx, SD_INDEX, &sd);
         let h = e.health;
