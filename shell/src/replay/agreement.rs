@@ -162,11 +162,7 @@ pub fn gps_phases(log: &FlightLog) -> Vec<(u64, &'static str)> {
         .collect()
 }
 
-pub fn wrap(a: f64) -> f64 {
-    let two_pi = 2.0 * std::f64::consts::PI;
-    let w = (a + std::f64::consts::PI).rem_euclid(two_pi) - std::f64::consts::PI;
-    if w.is_finite() { w } else { f64::NAN }
-}
+pub use skyframe_core::angles::wrap_pi as wrap;
 
 fn phase_at(phases: &[(u64, &'static str)], t_us: u64) -> &'static str {
     let i = phases.partition_point(|p| p.0 <= t_us);
