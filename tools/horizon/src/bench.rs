@@ -249,9 +249,21 @@ fn opencv_version(args: &BenchArgs) -> Result<String, Error> {
             args.python, args.python
         ))
     };
+    // The baseline is pinned to OpenCV 4 (its Canny and Hough are what the figures compare
+    // against); another major version is refused here, before minutes of rendering.
+    let wrong_version = |version: &str| {
+        Error::input(format!(
+            "{} has OpenCV {version}; the baseline is pinned to {OPENCV_PIN}: install it into another environment and pass its interpreter with --python, or pass --no-opencv",
+            args.python
+        ))
+    };
     match probe(&args.python) {
         Ok(out) if out.status.success() => {
-            return Ok(String::from_utf8_lossy(&out.stdout).into_owned());
+            let version = String::from_utf8_lossy(&out.stdout).into_owned();
+            if !version.starts_with("4.") {
+                return Err(wrong_version(&version));
+            }
+            return Ok(version);
         }
         Err(_) if !args.install_opencv => return Err(missing()),
         _ if !args.install_opencv => return Err(missing()),
