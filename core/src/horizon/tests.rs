@@ -241,6 +241,49 @@ fn undistortion_inverts_distortion() {
 }
 
 #[test]
+fn undistortion_is_exact_over_the_frame_and_refuses_the_folded_branch() {
+    let mut camera = Camera::ideal(640, 480, 80.0 * DEG);
+    camera.k1 = -0.3;
+    camera.k2 = 0.08;
+    // Every undistorted point of a 640×480 frame with this lens (r up to about 1.05) comes
+    // back from its distorted image to 1e-6 (1/1600 px).
+    for i in 0..=20 {
+        for j in 0..=20 {
+            let (x, y) = (-0.84 + 0.084 * i as f32, -0.63 + 0.063 * j as f32);
+            let (xd, yd) = camera.distort_normalised(x, y);
+            let (xu, yu) = camera.undistort_normalised(xd, yd).expect("invertible");
+            assert!(
+                (xu - x).abs() < 1e-6 && (yu - y).abs() < 1e-6,
+                "{x},{y} -> {xu},{yu}"
+            );
+        }
+    }
+    // Without k2 the model r·(1 − 0.3·r²) stops growing at r = 1.054, where it reaches 0.703:
+    // a larger distorted radius has no inverse on the lens's own branch.
+    camera.k2 = 0.0;
+    assert!(camera.undistort_normalised(0.69, 0.0).is_some());
+    assert_eq!(camera.undistort_normalised(0.75, 0.0), None);
+    assert_eq!(camera.undistort_normalised(f32::NAN, 0.0), None);
+}
+
+#[test]
+fn fast_atan2_agrees_with_libm() {
+    let mut worst = 0.0f32;
+    for i in 0..3600 {
+        let a = i as f32 * 0.1 * DEG - PI;
+        for r in [1e-3, 1.0, 700.0] {
+            let (y, x) = (r * libm::sinf(a), r * libm::cosf(a));
+            let error =
+                super::hough::wrap_angle(super::edges::fast_atan2(y, x) - libm::atan2f(y, x));
+            worst = worst.max(error.abs());
+        }
+    }
+    assert!(worst < 3e-6, "worst {worst} rad");
+    assert_eq!(super::edges::fast_atan2(0.0, 0.0), 0.0);
+    assert!(super::edges::fast_atan2(f32::NAN, 1.0).is_nan());
+}
+
+#[test]
 fn tracking_follows_a_moving_horizon() {
     let camera = camera_320();
     let mut buffers = Buffers::new(320, 240);
