@@ -708,3 +708,46 @@ fn no_horizon_in_fog_or_out_of_the_frame() {
         }
     }
 }
+
+#[test]
+fn sinusoidal_interference_across_the_horizon() {
+    // Analog interference: a sinusoid of amplitude 30 (the horizon's step is 70) at angles
+    // away from the horizon's. Its gradient, added to the horizon's at every pixel, scatters
+    // the horizon's edge points (2 Hough votes where a clean frame gives 150); the region
+    // search must find the line, or the detector must say it cannot.
+    let camera = camera_320();
+    let cases = [
+        // roll, pitch (deg), stripe angle from the rows (deg), period (px)
+        (-10.0, -2.5, 35.0, 12.0),
+        (-18.0, -1.0, -60.0, 9.0),
+        (5.0, 4.0, 25.0, 16.0),
+        (20.0, 6.0, 70.0, 11.0),
+        (0.0, 0.0, -40.0, 14.0),
+        (-30.0, 3.0, 45.0, 10.0),
+    ];
+    let mut right = 0;
+    for (i, &(roll, pitch, stripe, period)) in cases.iter().enumerate() {
+        let (ku, kv) = (
+            -libm::sinf(stripe * DEG) * 2.0 * PI / period,
+            libm::cosf(stripe * DEG) * 2.0 * PI / period,
+        );
+        let phase = i as f32;
+        let grey = render_grey(&camera, roll * DEG, pitch * DEG, |u, v, d| {
+            let scene = if d <= 0.0 {
+                175.0
+            } else {
+                105.0 + 30.0 * (hash((u / 7.0) as i64, (v / 5.0) as i64, 9) - 0.5)
+            };
+            scene + 30.0 * libm::sinf(ku * u + kv * v + phase)
+        });
+        let h = detect_once(camera, Pixels::Grey(&grey));
+        if assert_right_or_honest(h, roll, pitch, &std::format!("stripes at {stripe}°")) {
+            right += 1;
+        }
+    }
+    // Two of the six (stripes at 35° and 25°) are answered with a stripe's line at low
+    // confidence: a stripe line there explains 0.3–0.5 of the variance, above the region
+    // search's trigger (raising the trigger to 0.5 answered all six to 0.01° but cost other
+    // frames, see docs/horizon.md).
+    assert!(right >= 4, "{right} of {} answered right", cases.len());
+}
