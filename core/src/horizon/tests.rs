@@ -751,3 +751,37 @@ fn sinusoidal_interference_across_the_horizon() {
     // frames, see docs/horizon.md).
     assert!(right >= 4, "{right} of {} answered right", cases.len());
 }
+
+#[test]
+fn a_ramp_steeper_than_the_step_does_not_pull_the_line_down() {
+    // A step of 3 to 10 levels from the sky to the airlight, then the haze ramp, whose
+    // gradient per pixel out-grows the step's (the ramp is a fixed angle, so the lower the
+    // resolution the steeper). The gradient maximum placed the line at the ramp's steepest
+    // part, k/2 below the horizon: +1.0° (k = 0.035), +0.6° (k = 0.02), +1.5° (k = 0.05),
+    // at 640 px too when the step is 5 levels, all with confidence 1.
+    for (w, h, k, airlight) in [
+        (320, 240, 0.035, 210.0),
+        (320, 240, 0.035, 205.0),
+        (320, 240, 0.02, 205.0),
+        (320, 240, 0.05, 212.0),
+        (640, 480, 0.035, 210.0),
+        (640, 480, 0.02, 205.0),
+    ] {
+        let camera = Camera::ideal(w, h, 60.0 * DEG);
+        for (roll, pitch) in [(0.0, 0.0), (12.0, 3.0), (-20.0, -4.0), (30.0, 6.0)] {
+            let grey = render_grey(
+                &camera,
+                roll * DEG,
+                pitch * DEG,
+                hazy(215.0, airlight, 70.0, k),
+            );
+            let found = detect_once(camera, Pixels::Grey(&grey)).expect("a horizon");
+            let roll_error = wrap_angle(found.roll_rad - roll * DEG) / DEG;
+            let pitch_error = (found.pitch_rad - pitch * DEG) / DEG;
+            assert!(
+                roll_error.abs() < 0.2 && pitch_error.abs() < 0.1,
+                "{w}x{h} k {k} airlight {airlight}, roll {roll} pitch {pitch}: errors {roll_error:.3}° {pitch_error:.3}°"
+            );
+        }
+    }
+}
