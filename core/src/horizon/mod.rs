@@ -790,6 +790,11 @@ fn higher_edge(
 /// longer taken for noise that every edge must be three times stronger than.
 fn noise_level(histogram: &edges::GradientHistogram, grey: &[u8], geo: Working) -> u16 {
     let percentile = histogram.percentile(NOISE_PERCENTILE);
+    // The lowest histogram bin: a quiet frame, where neither the edge floor nor the noise
+    // binning depends on the level (and the Laplacian pass would cost every clean frame).
+    if percentile < 1 << edges::HISTOGRAM_SHIFT {
+        return percentile;
+    }
     let cap = edges::laplacian_mean_abs(grey, geo);
     if f32::from(percentile) > cap {
         cap as u16
