@@ -345,7 +345,8 @@ impl HorizonDetector {
         let base = Working::for_frame(width, height);
         edges::build_working_image(frame, base, ws.grey);
         let mut histogram = edges::GradientHistogram::measure(ws.grey, base, ws.rows);
-        let noise = noise_level(&histogram, ws.grey, base);
+        // Only a level above `noise_per_binning` bins further; below it the cap cannot matter.
+        let noise = noise_level(&histogram, ws.grey, base, self.config.noise_per_binning);
         let extra = usize::from(noise.div_ceil(self.config.noise_per_binning.max(1))).clamp(1, 4);
         let mut geo = base;
         if extra > 1 {
@@ -365,9 +366,22 @@ impl HorizonDetector {
 
         // 2–3: gradient, thinned and undistorted edge points.
         let perimeter = geo.width + geo.height;
+        // The noise floor only matters where it is above both the fixed floor and the
+        // threshold the edge budget sets; below that the Laplacian pass would change nothing.
+        let factor = u16::from(self.config.noise_floor_factor).max(1);
+        let budget_threshold = histogram.threshold(
+            geo,
+            usize::from(self.config.edge_pixels_per_perimeter_pixel) * (geo.width + geo.height),
+            0,
+        );
         let floor = self.config.min_gradient.max(
-            noise_level(&histogram, ws.grey, geo)
-                .saturating_mul(u16::from(self.config.noise_floor_factor)),
+            noise_level(
+                &histogram,
+                ws.grey,
+                geo,
+                self.config.min_gradient.max(budget_threshold) / factor,
+            )
+            .saturating_mul(u16::from(self.config.noise_floor_factor)),
         );
         let threshold = histogram.threshold(
             geo,
@@ -788,11 +802,17 @@ fn higher_edge(
 /// Laplacian mean of 4.8σ, so on noisy frames the cap does not bind; a smooth periodic
 /// pattern (interference) raises the gradient everywhere but not the Laplacian, and is no
 /// longer taken for noise that every edge must be three times stronger than.
-fn noise_level(histogram: &edges::GradientHistogram, grey: &[u8], geo: Working) -> u16 {
+///
+/// `matters_above`: a level at or below this decides nothing for the caller, so the
+/// percentile is returned as it is without the Laplacian pass (the cap only lowers the level).
+fn noise_level(
+    histogram: &edges::GradientHistogram,
+    grey: &[u8],
+    geo: Working,
+    matters_above: u16,
+) -> u16 {
     let percentile = histogram.percentile(NOISE_PERCENTILE);
-    // The lowest histogram bin: a quiet frame, where neither the edge floor nor the noise
-    // binning depends on the level (and the Laplacian pass would cost every clean frame).
-    if percentile < 1 << edges::HISTOGRAM_SHIFT {
+    if percentile <= matters_above {
         return percentile;
     }
     let cap = edges::laplacian_mean_abs(grey, geo);
