@@ -730,6 +730,46 @@ fn horizon_updates_correct_roll_with_their_capture_time() {
     };
 }
 
+#[test]
+fn horizon_gate_refuses_low_confidence_without_touching_the_state() {
+    // Issue 17: the detector says how far to trust a line; below the configured confidence
+    // the measurement must leave the attitude exactly as it was, at and above it correct it.
+    let traj = static_at(0.3);
+    let truth = traj(0.0);
+    let gate = EkfConfig::default().horizon_min_confidence;
+    let run = |confidence: f64| {
+        let mut ekf = ekf_at(&truth, 4.0, 0.0);
+        let mut outcomes = [0u32; 2];
+        for k in 1..=400u64 {
+            let t_ns = k * STEP_NS;
+            assert!(ekf.propagate(t_ns, DT, truth.w_body, truth.f_body));
+            if k % 10 == 0 && k > 15 {
+                let accepted = matches!(
+                    ekf.update_horizon(t_ns - 50_000_000, 0.0, 0.0, confidence),
+                    UpdateOutcome::Accepted
+                );
+                outcomes[usize::from(!accepted)] += 1;
+            }
+        }
+        (ekf.state().euler().0.to_degrees(), outcomes)
+    };
+    // Without horizon updates the 4° roll error stays (no GPS, the vehicle still).
+    let (roll_below, outcomes_below) = run(gate - 0.01);
+    let (roll_none, _) = run(f64::NAN);
+    assert_eq!(outcomes_below[0], 0);
+    assert_eq!(
+        roll_below, roll_none,
+        "a refused measurement moved the roll"
+    );
+    assert!(roll_below.abs() > 3.0, "{roll_below}");
+    let (roll_at, outcomes_at) = run(gate);
+    assert_eq!(outcomes_at[1], 0);
+    assert!(
+        roll_at.abs() < roll_below.abs() - 1.0,
+        "{roll_at} vs {roll_below}"
+    );
+}
+
 const TABLE_DT: f64 = 0.005;
 
 /// A continuous manoeuvring trajectory, tabulated every 5 ms: 25 m/s, bank

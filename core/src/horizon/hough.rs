@@ -84,23 +84,37 @@ pub(crate) fn vote(
     accumulator.fill(0);
     let inverse_step = 1.0 / rho.step;
     let offset = rho.half as f32 + 0.5;
+    let window = window.min(ANGLE_BINS / 4);
+    let limit = (bins - 1) as f32;
+    let mut vote_at = |bin: usize, s: f32, c: f32, point: &EdgePoint| {
+        let f = (point.x * s + point.y * c) * inverse_step + offset;
+        // `f` in [0, bins): NaN fails the test too.
+        if f >= 0.0 && f < limit + 1.0 {
+            if let Some(cell) = accumulator.get_mut(bin * bins + f as usize) {
+                *cell = cell.saturating_add(1);
+            }
+        }
+    };
     for point in edges {
         let centre = angle_bin(point.normal_angle);
-        for k in 0..=2 * window {
-            let bin = (centre + ANGLE_BINS + k - window) % ANGLE_BINS;
-            let (Some(&s), Some(&c)) = (tables.sin.get(bin), tables.cos.get(bin)) else {
+        let (lo, hi) = (centre + ANGLE_BINS - window, centre + ANGLE_BINS + window);
+        if lo >= ANGLE_BINS && hi < 2 * ANGLE_BINS {
+            // The window does not wrap (all but 2·window of the 360 bins): one contiguous run
+            // of the tables, no modulo per vote (the vote loop is most of the Hough stage).
+            let range = lo - ANGLE_BINS..=hi - ANGLE_BINS;
+            let (Some(sin), Some(cos)) = (tables.sin.get(range.clone()), tables.cos.get(range))
+            else {
                 continue;
             };
-            let f = (point.x * s + point.y * c) * inverse_step + offset;
-            if f < 0.0 {
-                continue;
+            for (k, (&s, &c)) in sin.iter().zip(cos).enumerate() {
+                vote_at(lo - ANGLE_BINS + k, s, c, point);
             }
-            let r = f as usize;
-            if r >= bins {
-                continue;
-            }
-            if let Some(cell) = accumulator.get_mut(bin * bins + r) {
-                *cell = cell.saturating_add(1);
+        } else {
+            for k in lo..=hi {
+                let bin = k % ANGLE_BINS;
+                if let (Some(&s), Some(&c)) = (tables.sin.get(bin), tables.cos.get(bin)) {
+                    vote_at(bin, s, c, point);
+                }
             }
         }
     }

@@ -20,6 +20,7 @@ mod edges;
 mod frame;
 mod hough;
 mod profile;
+mod region;
 #[cfg(test)]
 mod tests;
 
@@ -346,7 +347,8 @@ impl HorizonDetector {
         let base = Working::for_frame(width, height);
         edges::build_working_image(frame, base, ws.grey);
         let mut histogram = edges::GradientHistogram::measure(ws.grey, base, ws.rows);
-        let noise = histogram.percentile(NOISE_PERCENTILE);
+        // Only a level above `noise_per_binning` bins further; below it the cap cannot matter.
+        let noise = noise_level(&histogram, ws.grey, base, self.config.noise_per_binning);
         let extra = usize::from(noise.div_ceil(self.config.noise_per_binning.max(1))).clamp(1, 4);
         let mut geo = base;
         if extra > 1 {
@@ -366,10 +368,22 @@ impl HorizonDetector {
 
         // 2–3: gradient, thinned and undistorted edge points.
         let perimeter = geo.width + geo.height;
+        // The noise floor only matters where it is above both the fixed floor and the
+        // threshold the edge budget sets; below that the Laplacian pass would change nothing.
+        let factor = u16::from(self.config.noise_floor_factor).max(1);
+        let budget_threshold = histogram.threshold(
+            geo,
+            usize::from(self.config.edge_pixels_per_perimeter_pixel) * (geo.width + geo.height),
+            0,
+        );
         let floor = self.config.min_gradient.max(
-            histogram
-                .percentile(NOISE_PERCENTILE)
-                .saturating_mul(u16::from(self.config.noise_floor_factor)),
+            noise_level(
+                &histogram,
+                ws.grey,
+                geo,
+                self.config.min_gradient.max(budget_threshold) / factor,
+            )
+            .saturating_mul(u16::from(self.config.noise_floor_factor)),
         );
         let threshold = histogram.threshold(
             geo,
@@ -390,10 +404,21 @@ impl HorizonDetector {
         let wanted = usize::from(self.config.candidates).clamp(1, MAX_CANDIDATES - 2);
         // A horizon shorter than a sixth of the frame width is not worth validating.
         let min_votes = (geo.width / 6).max(8) as u16;
-        let mut count = hough::find_peaks(
+        // Twice the candidates wanted, then at most `PER_DIRECTION` of them per direction: a
+        // periodic pattern (interference, a ploughed field, a fence) draws a family of parallel
+        // lines that out-vote the horizon and would take every candidate slot, each one
+        // explaining nothing, so that no line at the horizon's angle was validated.
+        let mut found = [Peak::default(); MAX_CANDIDATES];
+        let found_count = hough::find_peaks(
             ws.accumulator,
             rho,
             min_votes,
+            found
+                .get_mut(..(2 * wanted).min(MAX_CANDIDATES))
+                .unwrap_or(&mut []),
+        );
+        let mut count = diverse_peaks(
+            found.get(..found_count).unwrap_or(&[]),
             peaks.get_mut(..wanted).unwrap_or(&mut []),
         );
         // Search near the tracked line first: its best cell competes even when it is not
@@ -428,9 +453,7 @@ impl HorizonDetector {
                 }
             }
         }
-        if count == 0 {
-            return Err(Outcome::NoCandidate);
-        }
+        // No early return without a candidate: the region search below may still find one.
 
         // 6: refine and validate each candidate.
         let sample_count = edges::collect_samples(frame, ws.grey, geo, &camera, ws.samples);
@@ -468,6 +491,36 @@ impl HorizonDetector {
             });
         }
 
+        // 6b: when no edge line splits the frame, the line that best splits it into two
+        // regions (see `region`): interference's stripes out-vote the horizon, whose own edge
+        // points it scatters. Only on such frames, so that it costs nothing on the others.
+        let mut from_region = false;
+        let hough_best = best_of(&scored, |_| true);
+        if hough_best.is_none_or(|b| b.explained < REGION_TRIGGER)
+            && let Some(line) = region::search(samples, libm::sqrtf(max_radius2))
+        {
+            let separation = hough::separation(samples, line, 2.0 * rho.step);
+            if separation.explained >= MIN_EXPLAINED
+                && hough_best.is_none_or(|b| separation.explained > REGION_MARGIN * b.explained)
+            {
+                let horizon = self.orient(line, separation.bright_is_sky);
+                scored = [None; MAX_CANDIDATES];
+                if let Some(slot) = scored.first_mut() {
+                    *slot = Some(Scored {
+                        line,
+                        horizon,
+                        explained: separation.explained,
+                        coverage: 1.0,
+                        score: separation.explained,
+                        continues_track: self
+                            .track
+                            .is_some_and(|t| self.in_gate(&t.line, &horizon)),
+                    });
+                }
+                from_region = true;
+            }
+        }
+
         // 7: choose, with tracking's jump gate.
         let best_overall = best_of(&scored, |_| true).ok_or(Outcome::NoCandidate)?;
         let best_continuation = best_of(&scored, |s| s.continues_track);
@@ -502,7 +555,7 @@ impl HorizonDetector {
         };
         let mut chosen = chosen;
         let mut climbed = false;
-        for _ in 0..2 {
+        for _ in 0..if from_region { 0 } else { 2 } {
             match higher_edge(&context, ws.accumulator, &chosen, sky_brighter, min_votes) {
                 Some(upper) => {
                     chosen = Scored {
@@ -537,7 +590,13 @@ impl HorizonDetector {
         } else {
             0.0
         };
-        let mut confidence = explained_term * coverage_term * (0.3 + 0.7 * margin);
+        // A line from the region search was not drawn by edges: no coverage or rival terms,
+        // and what a clear full-resolution edge adds below.
+        let mut confidence = if from_region {
+            REGION_CONFIDENCE * explained_term
+        } else {
+            explained_term * coverage_term * (0.3 + 0.7 * margin)
+        };
         if edge_stats.dropped > 0 {
             confidence *= 0.8;
         }
@@ -564,6 +623,13 @@ impl HorizonDetector {
         confidence *= (1.0 - CLIPPED_SKY_WEIGHT * placement.clipped_sky).clamp(0.0, 1.0);
         if placement.significance < profile::MIN_SIGNIFICANCE {
             confidence *= 0.5;
+        }
+        if from_region {
+            // Without a clear edge where it was placed at full resolution, a region line's
+            // place is only as good as the sample grid (a few pixels).
+            confidence *= ((placement.significance - profile::MIN_SIGNIFICANCE)
+                / (3.0 * profile::MIN_SIGNIFICANCE))
+                .clamp(0.0, 1.0);
         }
         let chosen = Scored {
             horizon: placed,
@@ -730,6 +796,79 @@ fn higher_edge(
         score: separation.explained * coverage,
         continues_track: false,
     })
+}
+
+/// The frame's noise level in units of the Sobel magnitude: the quiet part of the gradient
+/// distribution ([`NOISE_PERCENTILE`]), but no more than white noise with the frame's
+/// Laplacian would give. White noise of σ gives a 30th percentile of about 3.7σ and a
+/// Laplacian mean of 4.8σ, so on noisy frames the cap does not bind; a smooth periodic
+/// pattern (interference) raises the gradient everywhere but not the Laplacian, and is no
+/// longer taken for noise that every edge must be three times stronger than.
+///
+/// `matters_above`: a level at or below this decides nothing for the caller, so the
+/// percentile is returned as it is without the Laplacian pass (the cap only lowers the level).
+fn noise_level(
+    histogram: &edges::GradientHistogram,
+    grey: &[u8],
+    geo: Working,
+    matters_above: u16,
+) -> u16 {
+    let percentile = histogram.percentile(NOISE_PERCENTILE);
+    if percentile <= matters_above {
+        return percentile;
+    }
+    let cap = edges::laplacian_mean_abs(grey, geo);
+    if f32::from(percentile) > cap {
+        cap as u16
+    } else {
+        percentile
+    }
+}
+
+/// The region search runs when no edge line explains this share of the frame's variance ...
+const REGION_TRIGGER: f32 = 0.3;
+/// ... and its line replaces them when it explains this many times more than the best.
+const REGION_MARGIN: f32 = 1.5;
+/// Most confidence a line found by regions gets (its edges are not what drew it).
+const REGION_CONFIDENCE: f32 = 0.8;
+
+/// Candidates kept per direction (either polarity, within [`DIRECTION_BINS`] angle bins).
+const PER_DIRECTION: usize = 2;
+const DIRECTION_BINS: usize = 3;
+
+/// Copies `found` (strongest first) into `out`, at most [`PER_DIRECTION`] per direction, then
+/// fills what room is left with the others in their order. Returns how many were written.
+fn diverse_peaks(found: &[Peak], out: &mut [Peak]) -> usize {
+    let same_direction = |a: &Peak, b: &Peak| {
+        let d = (a.angle + ANGLE_BINS - b.angle) % (ANGLE_BINS / 2);
+        d <= DIRECTION_BINS || d >= ANGLE_BINS / 2 - DIRECTION_BINS
+    };
+    let mut taken = [false; MAX_CANDIDATES];
+    let mut count = 0usize;
+    for (i, p) in found.iter().enumerate() {
+        if count >= out.len() {
+            break;
+        }
+        let chosen = out.get(..count).unwrap_or(&[]);
+        if chosen.iter().filter(|c| same_direction(c, p)).count() >= PER_DIRECTION {
+            continue;
+        }
+        if let (Some(slot), Some(t)) = (out.get_mut(count), taken.get_mut(i)) {
+            *slot = *p;
+            *t = true;
+            count += 1;
+        }
+    }
+    for (p, &t) in found.iter().zip(&taken) {
+        if count >= out.len() {
+            break;
+        }
+        if !t && let Some(slot) = out.get_mut(count) {
+            *slot = *p;
+            count += 1;
+        }
+    }
+    count
 }
 
 fn best_of(scored: &[Option<Scored>], keep: impl Fn(&Scored) -> bool) -> Option<Scored> {

@@ -29,6 +29,9 @@ const BIN_PX: f32 = 0.5;
 /// Least ratio of the edge's gradient to the profile's gradient noise for the position to be
 /// trusted (below it the coarse line stays).
 pub(crate) const MIN_SIGNIFICANCE: f32 = 4.0;
+/// A local gradient maximum on the sky side of the strongest, in the same transition, is the
+/// horizon's step when it has at least this share of the strongest one's gradient.
+const TOP_STEP_SHARE: f32 = 0.3;
 /// Largest roll change the two half-profiles may make (rad): more means the halves see
 /// different edges (an occlusion, a curved shore), and only the offset is moved.
 const MAX_ROLL_CHANGE: f32 = 0.03;
@@ -192,6 +195,34 @@ fn find_edge(profile: &Profile, sky_px: f32, ground_px: f32, sky_brighter: bool)
         libm::sqrtf(s2 / n) * core::f32::consts::FRAC_1_SQRT_2
     } else {
         0.0
+    };
+    // The horizon is the top of the transition. Under haze the ground comes out of the
+    // airlight along a ramp whose steepest part lies k/2 below the horizon (a fixed angle, so
+    // more pixels and a steeper gradient per pixel at lower resolution), under a step from the
+    // sky that may be smaller: at 320 px the ramp out-grew the step and the line went 3 px
+    // (0.7°) down. Walking from the gradient maximum towards the sky while the profile does
+    // not rise again (one transition), the sky-most local maximum that is a clear edge of its own
+    // is the step.
+    let (peak, g0) = {
+        let mut chosen = (peak, g0);
+        let mut i = peak;
+        while i > lo {
+            i -= 1;
+            let g = gradient(i);
+            // Flat stretches belong to the transition; where the profile rises again (by more
+            // than its noise) it has ended.
+            if g < -(noise + 0.05) {
+                break;
+            }
+            if g >= gradient(i.saturating_sub(1))
+                && g > gradient(i + 1)
+                && g >= TOP_STEP_SHARE * g0
+                && g >= MIN_SIGNIFICANCE * (noise + 0.05)
+            {
+                chosen = (i, g);
+            }
+        }
+        chosen
     };
     // Sub-bin position: parabola through the peak and its neighbours.
     let (a, c) = (gradient(peak.saturating_sub(1)), gradient(peak + 1));

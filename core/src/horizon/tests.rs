@@ -241,6 +241,49 @@ fn undistortion_inverts_distortion() {
 }
 
 #[test]
+fn undistortion_is_exact_over_the_frame_and_refuses_the_folded_branch() {
+    let mut camera = Camera::ideal(640, 480, 80.0 * DEG);
+    camera.k1 = -0.3;
+    camera.k2 = 0.08;
+    // Every undistorted point of a 640×480 frame with this lens (r up to about 1.05) comes
+    // back from its distorted image to 1e-6 (1/1600 px).
+    for i in 0..=20 {
+        for j in 0..=20 {
+            let (x, y) = (-0.84 + 0.084 * i as f32, -0.63 + 0.063 * j as f32);
+            let (xd, yd) = camera.distort_normalised(x, y);
+            let (xu, yu) = camera.undistort_normalised(xd, yd).expect("invertible");
+            assert!(
+                (xu - x).abs() < 1e-6 && (yu - y).abs() < 1e-6,
+                "{x},{y} -> {xu},{yu}"
+            );
+        }
+    }
+    // Without k2 the model r·(1 − 0.3·r²) stops growing at r = 1.054, where it reaches 0.703:
+    // a larger distorted radius has no inverse on the lens's own branch.
+    camera.k2 = 0.0;
+    assert!(camera.undistort_normalised(0.69, 0.0).is_some());
+    assert_eq!(camera.undistort_normalised(0.75, 0.0), None);
+    assert_eq!(camera.undistort_normalised(f32::NAN, 0.0), None);
+}
+
+#[test]
+fn fast_atan2_agrees_with_libm() {
+    let mut worst = 0.0f32;
+    for i in 0..3600 {
+        let a = i as f32 * 0.1 * DEG - PI;
+        for r in [1e-3, 1.0, 700.0] {
+            let (y, x) = (r * libm::sinf(a), r * libm::cosf(a));
+            let error =
+                super::hough::wrap_angle(super::edges::fast_atan2(y, x) - libm::atan2f(y, x));
+            worst = worst.max(error.abs());
+        }
+    }
+    assert!(worst < 3e-6, "worst {worst} rad");
+    assert_eq!(super::edges::fast_atan2(0.0, 0.0), 0.0);
+    assert!(super::edges::fast_atan2(f32::NAN, 1.0).is_nan());
+}
+
+#[test]
 fn tracking_follows_a_moving_horizon() {
     let camera = camera_320();
     let mut buffers = Buffers::new(320, 240);
@@ -662,6 +705,83 @@ fn no_horizon_in_fog_or_out_of_the_frame() {
     for (name, grey) in [("fog", fog), ("sky only", sky)] {
         if let Some(h) = detect_once(camera, Pixels::Grey(&grey)) {
             assert!(h.confidence < gate(), "{name}: confidence {}", h.confidence);
+        }
+    }
+}
+
+#[test]
+fn sinusoidal_interference_across_the_horizon() {
+    // Analog interference: a sinusoid of amplitude 30 (the horizon's step is 70) at angles
+    // away from the horizon's. Its gradient, added to the horizon's at every pixel, scatters
+    // the horizon's edge points (2 Hough votes where a clean frame gives 150); the region
+    // search must find the line, or the detector must say it cannot.
+    let camera = camera_320();
+    let cases = [
+        // roll, pitch (deg), stripe angle from the rows (deg), period (px)
+        (-10.0, -2.5, 35.0, 12.0),
+        (-18.0, -1.0, -60.0, 9.0),
+        (5.0, 4.0, 25.0, 16.0),
+        (20.0, 6.0, 70.0, 11.0),
+        (0.0, 0.0, -40.0, 14.0),
+        (-30.0, 3.0, 45.0, 10.0),
+    ];
+    let mut right = 0;
+    for (i, &(roll, pitch, stripe, period)) in cases.iter().enumerate() {
+        let (ku, kv) = (
+            -libm::sinf(stripe * DEG) * 2.0 * PI / period,
+            libm::cosf(stripe * DEG) * 2.0 * PI / period,
+        );
+        let phase = i as f32;
+        let grey = render_grey(&camera, roll * DEG, pitch * DEG, |u, v, d| {
+            let scene = if d <= 0.0 {
+                175.0
+            } else {
+                105.0 + 30.0 * (hash((u / 7.0) as i64, (v / 5.0) as i64, 9) - 0.5)
+            };
+            scene + 30.0 * libm::sinf(ku * u + kv * v + phase)
+        });
+        let h = detect_once(camera, Pixels::Grey(&grey));
+        if assert_right_or_honest(h, roll, pitch, &std::format!("stripes at {stripe}°")) {
+            right += 1;
+        }
+    }
+    // Two of the six (stripes at 35° and 25°) are answered with a stripe's line at low
+    // confidence: a stripe line there explains 0.3–0.5 of the variance, above the region
+    // search's trigger (raising the trigger to 0.5 answered all six to 0.01° but cost other
+    // frames, see docs/horizon.md).
+    assert!(right >= 4, "{right} of {} answered right", cases.len());
+}
+
+#[test]
+fn a_ramp_steeper_than_the_step_does_not_pull_the_line_down() {
+    // A step of 3 to 10 levels from the sky to the airlight, then the haze ramp, whose
+    // gradient per pixel out-grows the step's (the ramp is a fixed angle, so the lower the
+    // resolution the steeper). The gradient maximum placed the line at the ramp's steepest
+    // part, k/2 below the horizon: +1.0° (k = 0.035), +0.6° (k = 0.02), +1.5° (k = 0.05),
+    // at 640 px too when the step is 5 levels, all with confidence 1.
+    for (w, h, k, airlight) in [
+        (320, 240, 0.035, 210.0),
+        (320, 240, 0.035, 205.0),
+        (320, 240, 0.02, 205.0),
+        (320, 240, 0.05, 212.0),
+        (640, 480, 0.035, 210.0),
+        (640, 480, 0.02, 205.0),
+    ] {
+        let camera = Camera::ideal(w, h, 60.0 * DEG);
+        for (roll, pitch) in [(0.0, 0.0), (12.0, 3.0), (-20.0, -4.0), (30.0, 6.0)] {
+            let grey = render_grey(
+                &camera,
+                roll * DEG,
+                pitch * DEG,
+                hazy(215.0, airlight, 70.0, k),
+            );
+            let found = detect_once(camera, Pixels::Grey(&grey)).expect("a horizon");
+            let roll_error = wrap_angle(found.roll_rad - roll * DEG) / DEG;
+            let pitch_error = (found.pitch_rad - pitch * DEG) / DEG;
+            assert!(
+                roll_error.abs() < 0.2 && pitch_error.abs() < 0.1,
+                "{w}x{h} k {k} airlight {airlight}, roll {roll} pitch {pitch}: errors {roll_error:.3}° {pitch_error:.3}°"
+            );
         }
     }
 }

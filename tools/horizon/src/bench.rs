@@ -62,6 +62,12 @@ pub struct BenchArgs {
     /// Keep the frames (and opencv.csv files) in this directory instead of a scratch one.
     #[arg(long)]
     pub keep: Option<PathBuf>,
+    /// Also score a directory of real labelled frames, laid out as the bench's own sets:
+    /// frame_NNNNNN.png, camera.toml and truth.csv (`frame,roll_deg,pitch_deg,visible`).
+    /// Only scored, like the held-out generator (repeatable; see docs/horizon.md for the UAV
+    /// set). --sizes and --generator do not apply to it, --only does.
+    #[arg(long)]
+    pub real: Vec<PathBuf>,
 }
 
 /// One detector's run over one set.
@@ -163,6 +169,115 @@ pub fn terrain_set(
     }
 }
 
+/// A directory of real labelled frames (see [`BenchArgs::real`]).
+pub fn real_set(dir: &Path) -> Result<SynthSet, Error> {
+    let camera = CameraFile::load(&dir.join("camera.toml"))?;
+    let frames = image_io::list_frames(dir)?;
+    if let Some(odd) = frames.iter().find(|f| {
+        let name = f.file_name().and_then(|n| n.to_str()).unwrap_or("");
+        !(name.starts_with("frame_") && name.ends_with(".png"))
+    }) {
+        return Err(Error::input(format!(
+            "{}: a real set's frames are named frame_NNNNNN.png (the OpenCV baseline reads only those)",
+            odd.display()
+        )));
+    }
+    let truth_path = dir.join("truth.csv");
+    let text = std::fs::read_to_string(&truth_path)
+        .map_err(|e| Error::input(format!("{}: {e}", truth_path.display())))?;
+    let mut truths = Vec::new();
+    for (n, line) in text.lines().enumerate().skip(1) {
+        let bad = || {
+            Error::input(format!(
+                "{}: line {}: want frame,roll_deg,pitch_deg,visible, got {line:?}",
+                truth_path.display(),
+                n + 1
+            ))
+        };
+        let fields: Vec<&str> = line.split(',').map(str::trim).collect();
+        let [frame, roll, pitch, visible] = fields.as_slice() else {
+            return Err(bad());
+        };
+        if frame.parse::<usize>().ok() != Some(truths.len()) {
+            return Err(bad());
+        }
+        let (Ok(roll_deg), Ok(pitch_deg)) = (roll.parse::<f32>(), pitch.parse::<f32>()) else {
+            return Err(bad());
+        };
+        let visible = match *visible {
+            "1" => true,
+            "0" => false,
+            _ => return Err(bad()),
+        };
+        if !roll_deg.is_finite() || !pitch_deg.is_finite() {
+            return Err(bad());
+        }
+        truths.push(Truth {
+            roll_deg,
+            pitch_deg,
+            visible,
+        });
+    }
+    if truths.len() != frames.len() {
+        return Err(Error::input(format!(
+            "{}: {} frames but {} truth lines",
+            dir.display(),
+            frames.len(),
+            truths.len()
+        )));
+    }
+    let mut images = Vec::with_capacity(frames.len());
+    for path in &frames {
+        let image = image_io::read_image(path)?;
+        if (image.width, image.height) != (camera.width as usize, camera.height as usize) {
+            return Err(Error::input(format!(
+                "{}: {}×{}, the camera file says {}×{}",
+                path.display(),
+                image.width,
+                image.height,
+                camera.width,
+                camera.height
+            )));
+        }
+        images.push(image);
+    }
+    let name = dir
+        .file_name()
+        .and_then(|n| n.to_str())
+        .unwrap_or("real")
+        .to_string();
+    Ok(SynthSet {
+        generator: "real",
+        name,
+        camera,
+        frames: images,
+        truths,
+    })
+}
+
+/// The OpenCV baseline's view of a real set: links to its frames and camera file in the
+/// scratch directory (its opencv.csv is not written into the user's directory).
+fn link_real_set(from: &Path, to: &Path, set: &SynthSet) -> Result<(), Error> {
+    std::fs::create_dir_all(to).map_err(|e| Error::failure(format!("{}: {e}", to.display())))?;
+    let names = (0..set.frames.len())
+        .map(|i| format!("frame_{i:06}.png"))
+        .chain(["camera.toml".to_string()]);
+    for (name, source) in names.zip(
+        image_io::list_frames(from)?
+            .into_iter()
+            .chain([from.join("camera.toml")]),
+    ) {
+        let source = source
+            .canonicalize()
+            .map_err(|e| Error::failure(format!("{}: {e}", source.display())))?;
+        let target = to.join(name);
+        let _ = std::fs::remove_file(&target);
+        std::os::unix::fs::symlink(&source, &target)
+            .map_err(|e| Error::failure(format!("{}: {e}", target.display())))?;
+    }
+    Ok(())
+}
+
 /// Runs this detector over a set (one detector, tracking across frames).
 pub fn run_ours(set: &SynthSet) -> Result<(Vec<Answer>, Vec<f64>), Error> {
     let mut runner = Runner::new(set.camera);
@@ -249,9 +364,21 @@ fn opencv_version(args: &BenchArgs) -> Result<String, Error> {
             args.python, args.python
         ))
     };
+    // The baseline is pinned to OpenCV 4 (its Canny and Hough are what the figures compare
+    // against); another major version is refused here, before minutes of rendering.
+    let wrong_version = |version: &str| {
+        Error::input(format!(
+            "{} has OpenCV {version}; the baseline is pinned to {OPENCV_PIN}: install it into another environment and pass its interpreter with --python, or pass --no-opencv",
+            args.python
+        ))
+    };
     match probe(&args.python) {
         Ok(out) if out.status.success() => {
-            return Ok(String::from_utf8_lossy(&out.stdout).into_owned());
+            let version = String::from_utf8_lossy(&out.stdout).into_owned();
+            if !version.starts_with("4.") {
+                return Err(wrong_version(&version));
+            }
+            return Ok(version);
         }
         Err(_) if !args.install_opencv => return Err(missing()),
         _ if !args.install_opencv => return Err(missing()),
@@ -367,6 +494,21 @@ fn bench_in(
         }
     }
     let wanted = |name: &str| args.only.as_deref().is_none_or(|o| name.contains(o));
+    // Real sets first: a bad directory is refused before minutes of rendering.
+    let mut real = Vec::new();
+    for dir in &args.real {
+        let set = real_set(dir)?;
+        if !wanted(&set.name) {
+            continue;
+        }
+        eprintln!("reading the real set {}", dir.display());
+        let size = format!("{}x{}", set.camera.width, set.camera.height);
+        let link = scratch.join(format!("real-{}", set.name));
+        if opencv_version.is_some() {
+            link_real_set(dir, &link, &set)?;
+        }
+        real.push((set, link, size));
+    }
     let mut sets = Vec::new();
     for &(which, w, h) in &plan {
         let name = match which {
@@ -387,6 +529,7 @@ fn bench_in(
         }
         sets.push((set, dir, format!("{w}x{h}")));
     }
+    sets.extend(real);
     if sets.is_empty() {
         return Err(Error::input("no set matches --only"));
     }
@@ -430,8 +573,13 @@ fn bench_in(
         });
     }
     let mut speed = Vec::new();
-    for &(w, h) in &sizes {
-        let size = format!("{w}x{h}");
+    let mut speed_sizes: Vec<String> = sizes.iter().map(|(w, h)| format!("{w}x{h}")).collect();
+    for (_, _, size) in &sets {
+        if !speed_sizes.contains(size) {
+            speed_sizes.push(size.clone());
+        }
+    }
+    for size in &speed_sizes {
         let size = size.as_str();
         let pick = |i: usize| sets.get(i).is_some_and(|(_, _, s)| s == size);
         let ours_ms: Vec<f64> = ours
@@ -447,6 +595,10 @@ fn bench_in(
             .filter_map(|(_, t)| t.as_ref())
             .flat_map(|(_, m)| m.clone())
             .collect();
+        if ours_ms.is_empty() {
+            // Only a real set of another size was asked for (--only).
+            continue;
+        }
         let has_opencv = !theirs_ms.is_empty();
         speed.push(Speed {
             size: size.to_string(),

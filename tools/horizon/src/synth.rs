@@ -39,10 +39,17 @@ pub enum Degradation {
     Haze,
     /// All of the above at once, milder each.
     Mixed,
+    /// Analog interference (issue 17): a sinusoidal pattern across the frame at some angle,
+    /// drifting from frame to frame, and a soft bright hum bar rolling down.
+    Interference,
+    /// A starved digital link (issue 17): each 8×8 block reduced to its mean and its two
+    /// first ramps, quantised coarsely; lost macroblocks concealed by repeating a neighbour;
+    /// rows of blocks torn sideways.
+    Blocks,
 }
 
 impl Degradation {
-    pub const SETS: [Degradation; 11] = [
+    pub const SETS: [Degradation; 13] = [
         Degradation::Clean,
         Degradation::SensorNoise,
         Degradation::TransmissionNoise,
@@ -54,6 +61,8 @@ impl Degradation {
         Degradation::Clouds,
         Degradation::Distortion,
         Degradation::Haze,
+        Degradation::Interference,
+        Degradation::Blocks,
     ];
 
     pub fn name(self) -> &'static str {
@@ -70,6 +79,8 @@ impl Degradation {
             Degradation::Distortion => "distortion",
             Degradation::Haze => "haze",
             Degradation::Mixed => "mixed",
+            Degradation::Interference => "interference",
+            Degradation::Blocks => "blocks",
         }
     }
 
@@ -435,6 +446,14 @@ impl Renderer {
                 }
             }
         }
+        // Interference and blocks are not part of `mixed` (its figures stay comparable with
+        // the runs before they were added).
+        if self.degradation == Degradation::Interference {
+            interference(pixels, w, h, index, rng);
+        }
+        if self.degradation == Degradation::Blocks {
+            blocks(pixels, w, h, rng);
+        }
         let stripe = if self.has(Degradation::WhiteStripes) {
             Some(255.0)
         } else if self.degradation == Degradation::BlackStripes {
@@ -614,4 +633,99 @@ fn ground_colour(
     let texture = (fbm(world ^ 0x7E7, north / 6.0, east / 6.0, 3) - 0.5) * 40.0;
     let k = 1.0 - (-distance / haze.distance_m).exp();
     std::array::from_fn(|i| (c[i] + texture) * (1.0 - k) + haze.colour[i] * k)
+}
+
+/// A sinusoid of period 5–30 px (at 320 px) and amplitude 10–40 levels whose crests run at
+/// an angle within ±70° of the rows (near the horizon's own direction is the hard case),
+/// drifting by a random phase every frame, plus a hum bar: a third of the frame brighter by
+/// up to 30 levels, its raised-cosine profile moving down the frame.
+fn interference(pixels: &mut [[f32; 3]], w: usize, h: usize, index: usize, rng: &mut Rng) {
+    let scale = w as f32 / 320.0;
+    let angle = rng.range(-1.2, 1.2);
+    let period = rng.range(5.0, 30.0) * scale;
+    let amplitude = rng.range(10.0, 40.0);
+    let phase = rng.range(0.0, std::f32::consts::TAU);
+    let (ku, kv) = (
+        -angle.sin() * std::f32::consts::TAU / period,
+        angle.cos() * std::f32::consts::TAU / period,
+    );
+    let bar = rng.range(0.0, 30.0);
+    let bar_centre = ((index as f32 * 0.13 + rng.range(0.0, 0.05)) % 1.3 - 0.15) * h as f32;
+    let bar_half = h as f32 / 6.0;
+    for (i, p) in pixels.iter_mut().enumerate() {
+        let (u, v) = ((i % w) as f32, (i / w) as f32);
+        let wave = amplitude * (ku * u + kv * v + phase).sin();
+        let d = (v - bar_centre) / bar_half;
+        let hum = if d.abs() < 1.0 {
+            bar * 0.5 * (1.0 + (d * std::f32::consts::PI).cos())
+        } else {
+            0.0
+        };
+        for c in p.iter_mut() {
+            *c += wave + hum;
+        }
+    }
+}
+
+/// Each 8×8 block of each channel keeps its mean and its horizontal and vertical ramps, each
+/// quantised to a step of 6–24 levels (a coarse DCT keeps about that much); 2–8 % of the 16×16
+/// macroblocks are lost and concealed by repeating the macroblock to their left (or mid-grey
+/// in the first column); one frame in three has a row of blocks torn sideways by 8–32 px.
+#[allow(clippy::needless_range_loop)] // block, row, column and channel indices, as in a codec
+fn blocks(pixels: &mut [[f32; 3]], w: usize, h: usize, rng: &mut Rng) {
+    let q = rng.range(6.0, 24.0);
+    let quantise = |x: f32| (x / q).round() * q;
+    // Ramp basis over a block: (i − 3.5) for i in 0..8, Σ(i − 3.5)² = 42 per row, 8 rows.
+    for by in 0..h / 8 {
+        for bx in 0..w / 8 {
+            for c in 0..3 {
+                let (mut sum, mut sx, mut sy) = (0.0f32, 0.0f32, 0.0f32);
+                for y in 0..8 {
+                    for x in 0..8 {
+                        let p = pixels[(by * 8 + y) * w + bx * 8 + x][c];
+                        sum += p;
+                        sx += (x as f32 - 3.5) * p;
+                        sy += (y as f32 - 3.5) * p;
+                    }
+                }
+                let mean = quantise(sum / 64.0);
+                // The ramps as the change across the block (7 px), quantised.
+                let gx = quantise(sx / 336.0 * 7.0) / 7.0;
+                let gy = quantise(sy / 336.0 * 7.0) / 7.0;
+                for y in 0..8 {
+                    for x in 0..8 {
+                        pixels[(by * 8 + y) * w + bx * 8 + x][c] =
+                            mean + gx * (x as f32 - 3.5) + gy * (y as f32 - 3.5);
+                    }
+                }
+            }
+        }
+    }
+    let loss = rng.range(0.02, 0.08);
+    for my in 0..h / 16 {
+        for mx in 0..w / 16 {
+            if rng.uniform() >= loss {
+                continue;
+            }
+            for y in my * 16..my * 16 + 16 {
+                for x in mx * 16..mx * 16 + 16 {
+                    pixels[y * w + x] = if mx > 0 {
+                        pixels[y * w + x - 16]
+                    } else {
+                        [128.0; 3]
+                    };
+                }
+            }
+        }
+    }
+    if rng.uniform() < 1.0 / 3.0 && h >= 8 {
+        let row = (rng.uniform() * (h / 8) as f32) as usize % (h / 8);
+        let shift = 8 * (1 + (rng.uniform() * 4.0) as usize);
+        for y in row * 8..(row * 8 + 8).min(h) {
+            let line: Vec<[f32; 3]> = pixels[y * w..(y + 1) * w].to_vec();
+            for (x, p) in pixels[y * w..(y + 1) * w].iter_mut().enumerate() {
+                *p = line[x.saturating_sub(shift)];
+            }
+        }
+    }
 }

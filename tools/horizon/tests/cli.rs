@@ -231,3 +231,43 @@ fn help_explains_the_commands() {
         text.contains("yuv4mpegpipe") && text.contains("--annotate") && text.contains("--camera")
     );
 }
+
+#[test]
+fn bench_scores_a_real_set_directory_and_refuses_a_bad_one() {
+    // A "real" set made of synthetic frames, so that its truth is known: the bench must read
+    // it back and score it as the truth says.
+    let dir = scratch("real-set");
+    synth(&dir, "png", 6);
+    let out = run(&[
+        "bench",
+        "--json",
+        "--no-opencv",
+        "--real",
+        dir.to_str().expect("utf-8"),
+        "--only",
+        dir.file_name().and_then(|n| n.to_str()).expect("name"),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON");
+    let set = &report["accuracy"][0];
+    assert_eq!(set["generator"], "real");
+    assert_eq!(set["ours"]["accuracy"]["frames"], 6);
+    assert_eq!(set["ours"]["accuracy"]["within_2deg"], 1.0, "{set}");
+    // A truth file that does not match the frames: one line, exit 2.
+    std::fs::write(
+        dir.join("truth.csv"),
+        "frame,roll_deg,pitch_deg,visible\n0,1,2,1\n",
+    )
+    .expect("write");
+    let out = run(&[
+        "bench",
+        "--no-opencv",
+        "--real",
+        dir.to_str().expect("utf-8"),
+    ]);
+    assert_input_error(&out, "6 frames but 1 truth lines");
+}

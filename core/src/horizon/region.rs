@@ -1,0 +1,150 @@
+//! The horizon as the line that best splits the frame into two regions, found without edges:
+//! the fallback when the gradient is not to be trusted.
+//!
+//! Analog interference (a sinusoid across the frame) adds its own gradient to the horizon's at
+//! every pixel: the sum points in neither direction, non-maximum suppression breaks the
+//! horizon's ridge, and its edge points vote for no line (measured: 2 votes in the horizon's
+//! cells against 50 for each of the stripes). The stripes themselves form a family of lines
+//! that each explain nothing. The means of the two sides of a line are not fooled: a region
+//! holds many periods of the pattern, which average out. This is Otsu's criterion over lines:
+//! for each direction the samples are binned by their distance along the normal, and prefix
+//! sums give the between-class variance of every split in one pass.
+
+use super::edges::Sample;
+use super::hough::{Line, SATURATED};
+use core::f32::consts::PI;
+
+/// Directions of the coarse search over the half circle (3° apart).
+const COARSE_DIRECTIONS: usize = 60;
+/// Distance bins across the frame in the coarse search.
+const COARSE_BINS: usize = 64;
+/// Fine search: this many half-degree steps either side of the coarse direction ...
+const FINE_STEPS: i32 = 6;
+const FINE_STEP: f32 = 0.5 * PI / 180.0;
+/// ... and bins of this many per coarse bin, within `FINE_REACH` coarse bins of its split.
+const FINE_PER_COARSE: usize = 4;
+const FINE_REACH: usize = 3;
+const FINE_BINS: usize = 2 * FINE_REACH * FINE_PER_COARSE;
+/// Neither side may hold less than this share of the samples.
+const MIN_SIDE: f32 = 0.05;
+
+#[derive(Clone, Copy, Default)]
+struct Bin {
+    n: f32,
+    luma: f32,
+    chroma: f32,
+}
+
+impl Bin {
+    fn add(&mut self, s: &Sample) {
+        self.n += 1.0;
+        self.luma += s.luma;
+        self.chroma += s.chroma;
+    }
+
+    fn plus(self, o: Bin) -> Bin {
+        Bin {
+            n: self.n + o.n,
+            luma: self.luma + o.luma,
+            chroma: self.chroma + o.chroma,
+        }
+    }
+}
+
+/// Between-class variance (times the sample count) of a split with `low` on one side of
+/// `total`, or `None` when a side is too small.
+fn between(low: Bin, total: Bin) -> Option<f32> {
+    let high_n = total.n - low.n;
+    if low.n < MIN_SIDE * total.n || high_n < MIN_SIDE * total.n || low.n <= 0.0 {
+        return None;
+    }
+    let dl = low.luma / low.n - (total.luma - low.luma) / high_n;
+    let dc = low.chroma / low.n - (total.chroma - low.chroma) / high_n;
+    Some(low.n * high_n / total.n * (dl * dl + dc * dc))
+}
+
+/// The best split along direction `angle` of the samples whose distance lies in
+/// `[start, start + bins.len()·width)` (those below count as the low side). Returns the
+/// split's distance, its criterion, and the luma difference (high side minus low side).
+fn best_split<const N: usize>(
+    samples: &[Sample],
+    angle: f32,
+    start: f32,
+    width: f32,
+) -> Option<(f32, f32, f32)> {
+    let (s, c) = (libm::sinf(angle), libm::cosf(angle));
+    let mut bins = [Bin::default(); N];
+    let mut below = Bin::default();
+    let mut total = Bin::default();
+    let inverse = 1.0 / width;
+    for sample in samples {
+        if sample.luma >= SATURATED {
+            continue;
+        }
+        let d = sample.x * s + sample.y * c;
+        total.add(sample);
+        let f = (d - start) * inverse;
+        if f < 0.0 {
+            below.add(sample);
+        } else if f < N as f32
+            && let Some(b) = bins.get_mut(f as usize)
+        {
+            b.add(sample);
+        }
+    }
+    let mut low = below;
+    let mut best: Option<(f32, f32, f32)> = None;
+    for (k, b) in bins.iter().enumerate() {
+        low = low.plus(*b);
+        let Some(value) = between(low, total) else {
+            continue;
+        };
+        if best.is_none_or(|(_, v, _)| value > v) {
+            let high_n = total.n - low.n;
+            let contrast = (total.luma - low.luma) / high_n - low.luma / low.n;
+            best = Some((start + (k + 1) as f32 * width, value, contrast));
+        }
+    }
+    best
+}
+
+/// The line (normal towards the brighter side, as the Hough stage's) that best splits the
+/// samples into two regions; `extent` bounds the samples' distance from the centre.
+pub(crate) fn search(samples: &[Sample], extent: f32) -> Option<Line> {
+    if !extent.is_finite() || extent <= 0.0 {
+        return None;
+    }
+    let width = 2.0 * extent / COARSE_BINS as f32;
+    let mut coarse: Option<(f32, f32, f32)> = None;
+    let mut coarse_angle = 0.0;
+    for i in 0..COARSE_DIRECTIONS {
+        let angle = i as f32 * PI / COARSE_DIRECTIONS as f32;
+        if let Some(split) = best_split::<COARSE_BINS>(samples, angle, -extent, width)
+            && coarse.is_none_or(|(_, v, _)| split.1 > v)
+        {
+            coarse = Some(split);
+            coarse_angle = angle;
+        }
+    }
+    let (coarse_d, _, _) = coarse?;
+    let fine_width = width / FINE_PER_COARSE as f32;
+    let mut fine = coarse.map(|c| (coarse_angle, c))?;
+    for j in -FINE_STEPS..=FINE_STEPS {
+        let angle = coarse_angle + j as f32 * FINE_STEP;
+        let start = coarse_d - FINE_REACH as f32 * width;
+        if let Some(split) = best_split::<FINE_BINS>(samples, angle, start, fine_width)
+            && split.1 > fine.1.1
+        {
+            fine = (angle, split);
+        }
+    }
+    let (angle, (d, _, contrast)) = fine;
+    Some(if contrast >= 0.0 {
+        Line { angle, rho: d }
+    } else {
+        Line {
+            angle: angle + PI,
+            rho: -d,
+        }
+    })
+}
