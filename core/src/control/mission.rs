@@ -68,11 +68,15 @@ pub struct Guidance {
 }
 
 /// Progress through a mission.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct MissionProgress {
     pub index: usize,
     pub loitering: bool,
+    /// The course the airplane arrived on at the loiter's centre, held until it is a quarter
+    /// radius out: at the centre the bearing the orbit law steers by is undefined, and
+    /// flying through it would swing the command by up to 180°. `None` once on the circle.
+    pub loiter_entry_course_rad: Option<f32>,
 }
 
 /// Orbit gain `k` of the loiter law.
@@ -93,6 +97,7 @@ impl MissionProgress {
             if distance < mission.switch_radius_m {
                 if self.index >= last {
                     self.loitering = true;
+                    self.loiter_entry_course_rad = Some(libm::atan2f(de, dn));
                 } else {
                     self.index += 1;
                 }
@@ -102,8 +107,15 @@ impl MissionProgress {
         let wp = *mission.waypoints.get(index)?;
         let (dn, de) = (wp.north_m - north_m, wp.east_m - east_m);
         let distance = libm::sqrtf(dn * dn + de * de);
-        let course = if self.loitering {
-            let rho = mission.loiter_radius_m.max(1.0);
+        let rho = mission.loiter_radius_m.max(1.0);
+        if distance >= 0.25 * rho {
+            self.loiter_entry_course_rad = None;
+        }
+        let course = if let (true, Some(entry)) = (self.loitering, self.loiter_entry_course_rad) {
+            // Straight on out of the centre; the orbit law takes over a quarter radius out (half
+            // a radius overshot the circle by a third before it converged).
+            entry
+        } else if self.loitering {
             let gamma = libm::atan2f(-de, -dn);
             let lambda = if mission.loiter_clockwise { 1.0 } else { -1.0 };
             gamma
@@ -162,6 +174,33 @@ mod tests {
             "{}",
             g.course_rad
         );
+    }
+
+    #[test]
+    fn the_loiter_is_entered_straight_out_of_its_centre_not_through_it() {
+        let m = Mission::new(&[wp(0.0, 0.0), wp(500.0, 0.0)]).expect("fits");
+        let mut p = MissionProgress::default();
+        // Arriving northbound at the last waypoint (the loiter's centre).
+        p.guide(&m, 0.0, 0.0).expect("guidance");
+        p.guide(&m, 300.0, 0.0).expect("guidance");
+        let g = p.guide(&m, 480.0, 0.5).expect("guidance");
+        assert!(g.loitering);
+        // Through the centre and out to just under a quarter radius (37.5 m): the command
+        // stays the arrival course (north), where the orbit law would swing it by ~180°.
+        for north in [490.0, 500.0, 505.0, 520.0, 530.0, 537.0] {
+            let g = p.guide(&m, north, 0.5).expect("guidance");
+            assert!(g.course_rad.abs() < 0.05, "at {north} m: {}", g.course_rad);
+        }
+        // Beyond it the orbit law steers, right of the bearing from the centre (clockwise):
+        // 90° + atan(2·(40 − 150)/150) = 34.3° at 40 m; and it keeps steering back inside.
+        let g = p.guide(&m, 540.0, 0.0).expect("guidance");
+        assert!(
+            (g.course_rad - 34.3f32.to_radians()).abs() < 0.02,
+            "{}",
+            g.course_rad
+        );
+        let g = p.guide(&m, 520.0, 0.0).expect("guidance");
+        assert!(g.course_rad > 0.4, "{}", g.course_rad);
     }
 
     #[test]
