@@ -64,17 +64,15 @@ pub fn signed_roll_error_deg(measured: f32, truth: f32) -> f32 {
     (measured - truth + 180.0).rem_euclid(360.0) - 180.0
 }
 
-fn percentile(sorted: &[f32], p: f32) -> f32 {
-    if sorted.is_empty() {
-        return f32::NAN;
-    }
-    let rank = ((p * sorted.len() as f32).ceil() as usize).clamp(1, sorted.len());
-    sorted[rank - 1]
+/// The nearest-rank percentile `num/den` of sorted values (NaN for none): skyframe's one
+/// definition (`skyframe_core::stats`).
+fn percentile(sorted: &[f32], num: u64, den: u64) -> f32 {
+    skyframe_core::stats::percentile(sorted, num, den).unwrap_or(f32::NAN)
 }
 
 fn median_of(mut v: Vec<f32>) -> f32 {
     v.sort_by(f32::total_cmp);
-    percentile(&v, 0.5)
+    percentile(&v, 50, 100)
 }
 
 pub fn evaluate(answers: &[Answer], truths: &[Truth]) -> Accuracy {
@@ -125,10 +123,10 @@ pub fn evaluate(answers: &[Answer], truths: &[Truth]) -> Accuracy {
         frames,
         visible,
         found: roll_errors.len(),
-        roll_median_deg: percentile(&roll_errors, 0.5),
-        roll_p95_deg: percentile(&roll_errors, 0.95),
-        pitch_median_deg: percentile(&pitch_errors, 0.5),
-        pitch_p95_deg: percentile(&pitch_errors, 0.95),
+        roll_median_deg: percentile(&roll_errors, 50, 100),
+        roll_p95_deg: percentile(&roll_errors, 95, 100),
+        pitch_median_deg: percentile(&pitch_errors, 50, 100),
+        pitch_p95_deg: percentile(&pitch_errors, 95, 100),
         roll_median_signed_deg: median_of(roll_signed),
         pitch_median_signed_deg: median_of(pitch_signed),
         within_1deg: share(within1),
