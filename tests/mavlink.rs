@@ -557,7 +557,10 @@ fn in_flight_a_new_mission_is_flown_then_set_current_and_clear_all_take_effect()
     );
     let seen = ground(port, "inflight", None);
     let report = finish_sim(sim);
-    assert!(!seen["first_reached"].is_null(), "in flight on the first mission: {seen}");
+    assert!(
+        !seen["first_reached"].is_null(),
+        "in flight on the first mission: {seen}"
+    );
     assert_eq!(seen["upload_new"], 0, "MAV_MISSION_ACCEPTED: {seen}");
     // Downloaded back: the mission uploaded (positions within 2e-7°, ~2 cm).
     let up = seen["uploaded"].as_array().expect("uploaded");

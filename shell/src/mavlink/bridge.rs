@@ -113,7 +113,7 @@ enum Pending {
 
 /// A mission change the vehicle is asked for: its link commands, answered one by one.
 enum MissionChange {
-    Upload(Mission),
+    Upload(Box<Mission>),
     Clear,
     /// Fly from this waypoint.
     SetCurrent(usize),
@@ -1133,7 +1133,7 @@ impl Bridge {
         if same {
             self.send(&mission_ack(MavMissionResult::MAV_MISSION_ACCEPTED, from));
         } else {
-            self.change_mission(MissionChange::Upload(uploaded), from);
+            self.change_mission(MissionChange::Upload(Box::new(uploaded)), from);
         }
     }
 
@@ -1262,7 +1262,7 @@ impl Bridge {
             MissionChange::Upload(m) => {
                 self.reached = vec![false; m.waypoints.len()];
                 self.items = self.home.as_ref().map(|h| items_from_mission(&m, h));
-                self.mission = Some(m);
+                self.mission = Some(*m);
                 self.waypoint = None;
                 self.send(&mission_ack(MavMissionResult::MAV_MISSION_ACCEPTED, c.to));
             }
