@@ -530,6 +530,86 @@ fn with_speedup_the_auto_mission_reports_every_waypoint_reached() {
 }
 
 #[test]
+fn in_flight_a_new_mission_is_flown_then_set_current_and_clear_all_take_effect() {
+    let _others = FLOOD_ALONE
+        .read()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    let dir = scratch("mavlink-inflight");
+    let port = free_port();
+    let endpoint = format!("udpin:127.0.0.1:{port}");
+    let scenario = workspace().join("scenarios/auto-circuit.toml");
+    let mission = workspace().join("scenarios/circuit-mission.toml");
+    let sim = start_sim(
+        &dir,
+        &[
+            "--speedup",
+            "8",
+            "--no-link",
+            "--duration",
+            "235",
+            "--scenario",
+            scenario.to_str().expect("path"),
+            "--mission",
+            mission.to_str().expect("path"),
+            "--mavlink",
+            &endpoint,
+        ],
+    );
+    let seen = ground(port, "inflight", None);
+    let report = finish_sim(sim);
+    assert!(
+        !seen["first_reached"].is_null(),
+        "in flight on the first mission: {seen}"
+    );
+    assert_eq!(seen["upload_new"], 0, "MAV_MISSION_ACCEPTED: {seen}");
+    // Downloaded back: the mission uploaded (positions within 2e-7°, ~2 cm).
+    let up = seen["uploaded"].as_array().expect("uploaded");
+    let down = seen["downloaded"].as_array().expect("downloaded");
+    assert_eq!(down.len(), up.len(), "{down:?}");
+    for (u, d) in up.iter().zip(down) {
+        assert_eq!((&u["seq"], &u["command"]), (&d["seq"], &d["command"]));
+        for k in ["x", "y"] {
+            assert!((f(&u[k]) - f(&d[k])).abs() <= 2.0, "{k}: {u} vs {d}");
+        }
+        for k in ["z", "param1", "param2", "param3"] {
+            assert_eq!(f(&u[k]) as f32, f(&d[k]) as f32, "{k}: {u} vs {d}");
+        }
+    }
+    // Flown: MISSION_ITEM_REACHED for each of its waypoints, in order.
+    let want: Vec<u64> = up
+        .iter()
+        .filter(|i| i["command"] == 16)
+        .map(|i| i["seq"].as_u64().expect("seq"))
+        .collect();
+    let reached: Vec<u64> = seen["reached"]
+        .as_array()
+        .expect("reached")
+        .iter()
+        .map(|s| s.as_u64().expect("seq"))
+        .collect();
+    assert_eq!(reached, want, "the new mission's waypoints reached: {seen}");
+    // Set current: MISSION_CURRENT shows it.
+    assert_eq!(seen["set_current"]["seq"].as_u64(), Some(want[0]), "{seen}");
+    // Clear all: accepted, and a download has nothing.
+    assert_eq!(seen["clear_all"], 0, "{seen}");
+    assert_eq!(seen["after_clear"], serde_json::json!([]));
+    assert_eq!(seen["set_current_without_mission"]["total"], 0);
+    // The log: the control task flew the new mission's altitudes (the first mission's + 10 m,
+    // which it never asked for), then no waypoint once cleared.
+    let csv = flight_csv(&report, &dir);
+    let alt_c = column(&csv.join("control.1.csv"), "alt_c_m");
+    let waypoint = column(&csv.join("control.1.csv"), "waypoint");
+    for u in up.iter().filter(|i| i["command"] == 16) {
+        let z = f(&u["z"]) as f32;
+        assert!(
+            alt_c.iter().any(|a| *a as f32 == z),
+            "altitude {z} m commanded in the log"
+        );
+    }
+    assert_eq!(waypoint.last(), Some(&255.0), "no mission at the end");
+}
+
+#[test]
 fn with_a_key_only_signed_sets_change_anything() {
     let _others = FLOOD_ALONE
         .read()

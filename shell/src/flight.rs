@@ -15,6 +15,7 @@ use crate::vehicle::VehicleConfig;
 use serde::Serialize;
 use skyframe_core::comm::LogHealthCell;
 use skyframe_core::control::mission::Mission;
+use skyframe_core::control::mission_store::MissionStore;
 use skyframe_core::control::mode::FlightMode;
 use skyframe_core::devices::DecoderStats;
 use skyframe_core::executive::Task;
@@ -26,6 +27,7 @@ use skyframe_core::tasks::control::define_params;
 use skyframe_core::tasks::tap::Tap;
 use skyframe_core::tasks::telemetry::TelemetryConfig;
 use skyframe_sim::world::SimWorld;
+use std::cell::RefCell;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -440,7 +442,10 @@ pub fn fly<P: Platform>(
     }
 
     // The data path between tasks.
-    let shared = Shared::default();
+    let shared = Shared {
+        mission: RefCell::new(MissionStore::new(plan.mission.as_ref())),
+        ..Shared::default()
+    };
     // A loaded mission is what the researcher wants flown when the pilot hands over; the
     // ground station can still request Stabilise or Manual at any time.
     if plan.mission.is_some() {
@@ -507,7 +512,6 @@ pub fn fly<P: Platform>(
             log: logs.get_mut(i).and_then(Option::take),
             device,
             simulated: sim.is_some(),
-            mission: plan.mission.as_ref(),
             link: (entry.needs == Needs::Link)
                 .then(|| link_parts.take())
                 .flatten(),

@@ -12,7 +12,7 @@ use crate::logwriter::LogStream;
 use crate::serial::DevicePort;
 use skyframe_core::comm::{LatestSlot, LogHealthCell};
 use skyframe_core::control::controls::ComputerCommand;
-use skyframe_core::control::mission::Mission;
+use skyframe_core::control::mission_store::MissionStore;
 use skyframe_core::control::mode::FlightMode;
 use skyframe_core::devices::DecoderStats;
 use skyframe_core::devices::gps::{GpsConfig, GpsFix, SentenceKind};
@@ -233,6 +233,8 @@ pub struct Shared {
     pub active_mode: LatestSlot<FlightMode>,
     pub params: RefCell<ParamTable>,
     pub control: ControlSettings,
+    /// The mission in force (`--mission` at start), and what the link uploads in flight.
+    pub mission: RefCell<MissionStore>,
 }
 
 /// The link's parts for the telemetry task.
@@ -255,7 +257,6 @@ pub struct Wiring<'w> {
     pub device: Option<(DevicePort, u64)>,
     /// The simulated GPS ends each epoch with POS: no epoch of delay.
     pub simulated: bool,
-    pub mission: Option<&'w Mission>,
     pub link: Option<LinkParts<'w>>,
     pub stop: &'w AtomicBool,
 }
@@ -414,10 +415,11 @@ fn build_control<'w>(w: &mut Wiring<'w>) -> Result<Box<dyn FlightTask + 'w>, Str
             &shared.estimate,
             &shared.pilot,
             &shared.mode_request,
-            w.mission,
+            None,
             &shared.params,
             &shared.servo_commands,
         )
+        .flying_missions_from(&shared.mission)
         .publishing_mode(&shared.active_mode),
     ))
 }
@@ -443,6 +445,7 @@ fn build_telemetry<'w>(w: &mut Wiring<'w>) -> Result<Box<dyn FlightTask + 'w>, S
             stop: w.stop,
             ingress: Some(link.ingress),
             log_health: Some(link.log_health),
+            mission: Some(&shared.mission),
         },
     )))
 }

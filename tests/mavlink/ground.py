@@ -226,6 +226,55 @@ elif PHASE == "auto":
     out["modes"] = sorted(modes)
     out["landed_states"] = sorted(landed)
     out["highest_relative_alt_mm"] = top_mm
+elif PHASE == "inflight":
+    # A new mission in flight, flown; set-current; clear-all.
+    items = None
+    end = time.time() + 30
+    while items is None and time.time() < end:
+        items = mission_download()
+        if items is None:
+            time.sleep(0.5)
+    out["mission"] = items
+    # In the air on the first mission: its first waypoint reached.
+    first_seq = next(i["seq"] for i in items if i["command"] == mav.MAV_CMD_NAV_WAYPOINT)
+    out["first_reached"] = as_dict(wait("MISSION_ITEM_REACHED", 60, lambda r: r.seq == first_seq))
+    # The new mission: the first's last two waypoints, 10 m higher, and the loiter at the last.
+    wps = [dict(i) for i in items if i["command"] == mav.MAV_CMD_NAV_WAYPOINT][2:]
+    for w in wps:
+        w["z"] += 10
+    speed = dict(next(i for i in items if i["command"] == mav.MAV_CMD_DO_CHANGE_SPEED))
+    loiter = dict(items[-1])
+    loiter.update(x=wps[-1]["x"], y=wps[-1]["y"], z=wps[-1]["z"])
+    new = [speed] + wps + [loiter]
+    for seq, i in enumerate(new):
+        i["seq"] = seq
+    out["uploaded"] = new
+    out["upload_new"] = mission_upload(new)
+    out["downloaded"] = mission_download()
+    reached = []
+    currents = []
+    end = time.time() + 60
+    want = [i["seq"] for i in new if i["command"] == mav.MAV_CMD_NAV_WAYPOINT]
+    while time.time() < end and len(reached) < len(want):
+        msg = m.recv_match(type=["MISSION_ITEM_REACHED", "MISSION_CURRENT"], blocking=True, timeout=0.5)
+        if msg is None:
+            hello()
+        elif msg.get_type() == "MISSION_CURRENT":
+            currents.append(msg.seq)
+        else:
+            reached.append(msg.seq)
+    out["reached"] = reached
+    out["currents_while_flying"] = currents
+    # Back to the new mission's first waypoint.
+    m.mav.mission_set_current_send(1, 1, want[0])
+    cur = wait("MISSION_CURRENT", 10, lambda c: c.seq == want[0])
+    out["set_current"] = as_dict(cur)
+    m.mav.mission_clear_all_send(1, 1, mav.MAV_MISSION_TYPE_MISSION)
+    ack = wait("MISSION_ACK", 10)
+    out["clear_all"] = None if ack is None else ack.type
+    out["after_clear"] = mission_download()
+    m.mav.mission_set_current_send(1, 1, 1)
+    out["set_current_without_mission"] = as_dict(wait("MISSION_CURRENT", 5))
 elif PHASE == "signed":
     if KEY is not None:
         # Receive signed telemetry; send nothing signed yet.

@@ -5,6 +5,7 @@
 pub mod autopilot;
 pub mod controls;
 pub mod mission;
+pub mod mission_store;
 pub mod mode;
 pub mod pid;
 pub mod wind;

@@ -7,6 +7,8 @@
 
 use super::counters::LinkCounters;
 use super::wire::{Reader, WireError, Writer};
+use crate::control::mission::{MAX_WAYPOINTS, Waypoint};
+use crate::control::mission_store::{radii_in_range, waypoint_in_range};
 use crate::control::mode::FlightMode;
 use crate::executive::FrameStats;
 use crate::horizon::HorizonAttitude;
@@ -37,6 +39,10 @@ pub mod message_type {
     pub const REQUEST_MODE: u8 = 0x86;
     pub const HORIZON_ATTITUDE: u8 = 0x87;
     pub const STOP: u8 = 0x88;
+    pub const MISSION_CLEAR: u8 = 0x89;
+    pub const MISSION_ITEM: u8 = 0x8A;
+    pub const MISSION_COMMIT: u8 = 0x8B;
+    pub const MISSION_SET_CURRENT: u8 = 0x8C;
 
     /// Commands have the top bit set; telemetry does not.
     pub const fn is_command(message_type: u8) -> bool {
@@ -462,6 +468,26 @@ pub enum Command {
     HorizonAttitude(HorizonAttitude),
     /// End the run cleanly (tasks shut down, logs closed) before its programmed duration.
     Stop,
+    /// No mission in force (AUTO holds altitude, heading and airspeed).
+    MissionClear,
+    /// Waypoint `index` of an upload of `count` (item 0 starts the upload; the rest follow
+    /// in order). Staged: nothing is flown until [`Command::MissionCommit`].
+    MissionItem {
+        index: u8,
+        count: u8,
+        waypoint: Waypoint,
+    },
+    /// Puts the `count` staged waypoints in force, flown from the first.
+    MissionCommit {
+        count: u8,
+        switch_radius_m: f32,
+        loiter_radius_m: f32,
+        loiter_clockwise: bool,
+    },
+    /// Flies the mission in force from waypoint `index`.
+    MissionSetCurrent {
+        index: u8,
+    },
 }
 
 /// Limits of command arguments that do not depend on the parameter table.
@@ -767,6 +793,10 @@ impl Command {
             Command::RequestMode { .. } => t::REQUEST_MODE,
             Command::HorizonAttitude(_) => t::HORIZON_ATTITUDE,
             Command::Stop => t::STOP,
+            Command::MissionClear => t::MISSION_CLEAR,
+            Command::MissionItem { .. } => t::MISSION_ITEM,
+            Command::MissionCommit { .. } => t::MISSION_COMMIT,
+            Command::MissionSetCurrent { .. } => t::MISSION_SET_CURRENT,
         }
     }
 
@@ -785,7 +815,31 @@ impl Command {
                 value.encode(w)
             }
             Command::GetParam { name } => name.encode(w),
-            Command::ListParams | Command::Stop => Ok(()),
+            Command::ListParams | Command::Stop | Command::MissionClear => Ok(()),
+            Command::MissionItem {
+                index,
+                count,
+                waypoint,
+            } => {
+                w.u8(*index)?;
+                w.u8(*count)?;
+                w.f32(waypoint.north_m)?;
+                w.f32(waypoint.east_m)?;
+                w.f32(waypoint.altitude_m)?;
+                w.f32(waypoint.airspeed_mps)
+            }
+            Command::MissionCommit {
+                count,
+                switch_radius_m,
+                loiter_radius_m,
+                loiter_clockwise,
+            } => {
+                w.u8(*count)?;
+                w.f32(*switch_radius_m)?;
+                w.f32(*loiter_radius_m)?;
+                w.bool(*loiter_clockwise)
+            }
+            Command::MissionSetCurrent { index } => w.u8(*index),
             Command::RequestMode { mode } => w.u8(*mode as u8),
             Command::HorizonAttitude(h) => {
                 w.f32(h.roll_rad)?;
@@ -826,6 +880,24 @@ impl Command {
                 capture_t_ns: r.u64()?,
             }),
             t::STOP => Command::Stop,
+            t::MISSION_CLEAR => Command::MissionClear,
+            t::MISSION_ITEM => Command::MissionItem {
+                index: r.u8()?,
+                count: r.u8()?,
+                waypoint: Waypoint {
+                    north_m: r.f32()?,
+                    east_m: r.f32()?,
+                    altitude_m: r.f32()?,
+                    airspeed_mps: r.f32()?,
+                },
+            },
+            t::MISSION_COMMIT => Command::MissionCommit {
+                count: r.u8()?,
+                switch_radius_m: r.f32()?,
+                loiter_radius_m: r.f32()?,
+                loiter_clockwise: r.bool()?,
+            },
+            t::MISSION_SET_CURRENT => Command::MissionSetCurrent { index: r.u8()? },
             _ => return Err(WireError::Invalid),
         };
         r.finish()?;
@@ -856,13 +928,33 @@ impl Command {
                     && (-FRAC_PI_2..=FRAC_PI_2).contains(&h.pitch_rad)
                     && (0.0..=1.0).contains(&h.confidence)
             }
+            // A mission's items as the mission file loader checks them.
+            Command::MissionItem {
+                index,
+                count,
+                waypoint,
+            } => {
+                index < count && usize::from(count) <= MAX_WAYPOINTS && waypoint_in_range(&waypoint)
+            }
+            Command::MissionCommit {
+                count,
+                switch_radius_m,
+                loiter_radius_m,
+                ..
+            } => {
+                count > 0
+                    && usize::from(count) <= MAX_WAYPOINTS
+                    && radii_in_range(switch_radius_m, loiter_radius_m)
+            }
+            Command::MissionSetCurrent { index } => usize::from(index) < MAX_WAYPOINTS,
             // Parameter commands are checked against the table; the rest have no
             // arguments or only ones the decoder already restricts.
             Command::SetParam { .. }
             | Command::GetParam { .. }
             | Command::ListParams
             | Command::RequestMode { .. }
-            | Command::Stop => true,
+            | Command::Stop
+            | Command::MissionClear => true,
         }
     }
 }

@@ -7,12 +7,15 @@ use super::auth::{GuardError, MAX_SENDERS, ReplayError, ReplayGuard};
 use super::frame::{CRC_LEN, HEADER_LEN, TAG_LEN, crc32};
 use super::messages::*;
 use super::*;
+use crate::control::mission::Waypoint;
 use crate::control::mode::FlightMode;
 use crate::executive::FrameStats;
 use crate::horizon::HorizonAttitude;
 use crate::logfmt::Time;
 use proptest::prelude::*;
 use std::vec::Vec as StdVec;
+// `prop_oneof!` of more than ten strategies builds a `vec!`.
+use std::vec;
 
 const VEHICLE: u16 = 7;
 const GROUND: u8 = 1;
@@ -438,7 +441,39 @@ fn any_command() -> impl Strategy<Value = Command> {
             })
         }),
         Just(Command::Stop),
+        Just(Command::MissionClear),
+        (any::<u8>(), any::<u8>(), any::<[u32; 4]>()).prop_map(|(index, count, f)| {
+            Command::MissionItem {
+                index,
+                count,
+                waypoint: Waypoint {
+                    north_m: f32::from_bits(f[0]),
+                    east_m: f32::from_bits(f[1]),
+                    altitude_m: f32::from_bits(f[2]),
+                    airspeed_mps: f32::from_bits(f[3]),
+                },
+            }
+        }),
+        (any::<u8>(), any::<[u32; 2]>(), any::<bool>()).prop_map(|(count, f, loiter_clockwise)| {
+            Command::MissionCommit {
+                count,
+                switch_radius_m: f32::from_bits(f[0]),
+                loiter_radius_m: f32::from_bits(f[1]),
+                loiter_clockwise,
+            }
+        }),
+        any::<u8>().prop_map(|index| Command::MissionSetCurrent { index }),
     ]
+}
+
+/// A waypoint the mission file loader would take.
+fn flyable(north_m: f32, east_m: f32) -> Waypoint {
+    Waypoint {
+        north_m,
+        east_m,
+        altitude_m: 120.0,
+        airspeed_mps: 23.0,
+    }
 }
 
 fn any_message() -> impl Strategy<Value = Message> {
@@ -734,6 +769,32 @@ fn every_command_in_range_is_accepted() {
             capture_t_ns: 123,
         }),
         Command::Stop,
+        Command::MissionClear,
+        Command::MissionItem {
+            index: 31,
+            count: 32,
+            waypoint: Waypoint {
+                altitude_m: 1000.0,
+                airspeed_mps: 32.0,
+                ..flyable(-600.0, 500.0)
+            },
+        },
+        Command::MissionItem {
+            index: 0,
+            count: 1,
+            waypoint: Waypoint {
+                altitude_m: 20.0,
+                airspeed_mps: 17.0,
+                ..flyable(0.0, 0.0)
+            },
+        },
+        Command::MissionCommit {
+            count: 32,
+            switch_radius_m: 30.0,
+            loiter_radius_m: 110.0,
+            loiter_clockwise: false,
+        },
+        Command::MissionSetCurrent { index: 31 },
     ];
     let mut gate = gate();
     let params = test_params();
@@ -973,6 +1034,68 @@ fn rejects_out_of_range_arguments_with_an_ack() {
         horizon(f32::NAN, 0.0, 0.5),
         horizon(0.0, f32::INFINITY, 0.5),
         horizon(0.0, 0.0, f32::NAN),
+        // Missions: as the mission file loader refuses them.
+        Command::MissionItem {
+            index: 1,
+            count: 1,
+            waypoint: flyable(0.0, 0.0),
+        },
+        Command::MissionItem {
+            index: 0,
+            count: 33,
+            waypoint: flyable(0.0, 0.0),
+        },
+        Command::MissionItem {
+            index: 0,
+            count: 1,
+            waypoint: flyable(f32::NAN, 0.0),
+        },
+        Command::MissionItem {
+            index: 0,
+            count: 1,
+            waypoint: flyable(0.0, f32::INFINITY),
+        },
+        Command::MissionItem {
+            index: 0,
+            count: 1,
+            waypoint: Waypoint {
+                altitude_m: 19.0,
+                ..flyable(0.0, 0.0)
+            },
+        },
+        Command::MissionItem {
+            index: 0,
+            count: 1,
+            waypoint: Waypoint {
+                airspeed_mps: 40.0,
+                ..flyable(0.0, 0.0)
+            },
+        },
+        Command::MissionCommit {
+            count: 0,
+            switch_radius_m: 30.0,
+            loiter_radius_m: 150.0,
+            loiter_clockwise: true,
+        },
+        Command::MissionCommit {
+            count: 33,
+            switch_radius_m: 30.0,
+            loiter_radius_m: 150.0,
+            loiter_clockwise: true,
+        },
+        Command::MissionCommit {
+            count: 2,
+            switch_radius_m: 30.0,
+            loiter_radius_m: 100.0,
+            loiter_clockwise: true,
+        },
+        Command::MissionCommit {
+            count: 2,
+            switch_radius_m: f32::NAN,
+            loiter_radius_m: 150.0,
+            loiter_clockwise: true,
+        },
+        Command::MissionSetCurrent { index: 32 },
     ];
     for c in cases {
         let ack = assert_rejected(&[command(1, c)], RejectReason::OutOfRange).expect("acked");

@@ -22,6 +22,7 @@ use crate::control::autopilot::{Autopilot, AutopilotGains, Targets};
 use crate::control::controls::ComputerCommand;
 use crate::control::controls::Controls;
 use crate::control::mission::{Mission, MissionProgress};
+use crate::control::mission_store::MissionStore;
 use crate::control::mode::FlightMode;
 use crate::control::mode::{ModeDecision, ModeInputs, decide};
 use crate::control::pid::PidGains;
@@ -266,8 +267,12 @@ pub struct ControlTask<'a, S: RecordSink> {
     base: ControlSettings,
     settings: ControlSettings,
     autopilot: Autopilot,
-    mission: Option<&'a Mission>,
+    /// The mission flown (a copy of the store's, taken when its generation moves on).
+    mission: Option<Mission>,
     progress: MissionProgress,
+    /// Where a mission taken in flight comes from, and the generation last taken.
+    store: Option<&'a RefCell<MissionStore>>,
+    generation: Option<u32>,
     hold: Option<(f32, f32)>,
     log: TaskLog<S>,
     estimate: SlotReader<'a, Estimate>,
@@ -300,8 +305,10 @@ impl<'a, S: RecordSink> ControlTask<'a, S> {
             base: defaults,
             settings: defaults,
             autopilot: Autopilot::new(defaults.gains),
-            mission: mission.filter(|m| !m.waypoints.is_empty()),
+            mission: mission.filter(|m| !m.waypoints.is_empty()).cloned(),
             progress: MissionProgress::default(),
+            store: None,
+            generation: None,
             hold: None,
             log: TaskLog::new(log),
             estimate: estimate.reader(),
@@ -321,6 +328,41 @@ impl<'a, S: RecordSink> ControlTask<'a, S> {
     pub fn publishing_mode(mut self, slot: &'a LatestSlot<FlightMode>) -> Self {
         self.mode_out = Some(slot);
         self
+    }
+
+    /// Flies the mission in `store`, and each one put in force there in flight (from the
+    /// waypoint it says), in place of the mission given to [`Self::new`].
+    pub fn flying_missions_from(mut self, store: &'a RefCell<MissionStore>) -> Self {
+        self.store = Some(store);
+        self.generation = None;
+        self
+    }
+
+    /// Takes the store's mission when it changed: a new mission, or a new current waypoint.
+    fn refresh_mission(&mut self) {
+        let Some(store) = self.store else {
+            return;
+        };
+        // Busy (the telemetry task is writing it): the mission of the last step.
+        let Ok(store) = store.try_borrow() else {
+            return;
+        };
+        if self.generation == Some(store.generation()) {
+            return;
+        }
+        self.generation = Some(store.generation());
+        let m = store.mission();
+        if m.waypoints.is_empty() {
+            self.mission = None;
+        } else if let Some(mine) = self.mission.as_mut() {
+            mine.clone_from(m);
+        } else {
+            self.mission = Some(m.clone());
+        }
+        self.progress = MissionProgress {
+            index: store.start_index(),
+            ..MissionProgress::default()
+        };
     }
 
     pub fn last_step(&self) -> Option<&ControlStep> {
@@ -424,7 +466,10 @@ impl<'a, S: RecordSink> ControlTask<'a, S> {
             }
             (FlightMode::Auto, Some(e)) => {
                 let [n, east, _] = e.position_ned_m;
-                let guidance = self.mission.and_then(|m| self.progress.guide(m, n, east));
+                let guidance = self
+                    .mission
+                    .as_ref()
+                    .and_then(|m| self.progress.guide(m, n, east));
                 let (course_c, alt_c, speed_c) = match guidance {
                     Some(g) => {
                         waypoint = g.waypoint;
@@ -524,6 +569,7 @@ impl<S: RecordSink> Task for ControlTask<'_, S> {
     fn step(&mut self, cx: &mut TaskContext<'_>) -> Result<(), TaskFault> {
         let cx = &*cx;
         self.refresh_settings(cx);
+        self.refresh_mission();
         let dt_s = self.last_ns.map_or(0.02, |t| {
             (cx.now_ns.saturating_sub(t) as f32 * 1e-9).clamp(0.001, 0.1)
         });

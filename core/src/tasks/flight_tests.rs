@@ -366,3 +366,89 @@ fn control_task_flies_the_mission_in_auto() {
     );
     assert!(s.command.ready);
 }
+
+#[test]
+fn control_task_flies_a_mission_put_in_force_in_flight() {
+    use crate::control::mission_store::MissionStore;
+    let estimate = LatestSlot::new();
+    let pilot_slot = LatestSlot::new();
+    let requested = LatestSlot::new();
+    let out = LatestSlot::<ComputerCommand>::new();
+    let mut table = ParamTable::new();
+    define_params(&mut table, &ControlSettings::default()).expect("fits");
+    let params = RefCell::new(table);
+    let wp = |n: f32, e: f32, alt: f32, v: f32| Waypoint {
+        north_m: n,
+        east_m: e,
+        altitude_m: alt,
+        airspeed_mps: v,
+    };
+    let first = Mission::new(&[wp(0.0, 1000.0, 120.0, 22.0)]).expect("fits");
+    let store = RefCell::new(MissionStore::new(Some(&first)));
+    let health = HealthBoard::new(1);
+    let bytes = RefCell::new(Vec::new());
+    let mut task = ControlTask::new(
+        ControlSettings::default(),
+        Capture(&bytes),
+        &estimate,
+        &pilot_slot,
+        &requested,
+        None,
+        &params,
+        &out,
+    )
+    .flying_missions_from(&store);
+    task.init(&mut cx(&health, 0)).expect("init");
+    requested.publish(FlightMode::Auto);
+    let mut t = 0;
+    let mut step = |task: &mut ControlTask<'_, Capture<'_>>| {
+        t += 20 * MS;
+        pilot_slot.publish(pilot(ControlMode::Auto, 1500, t));
+        estimate.publish(healthy_estimate(t, true));
+        task.step(&mut cx(&health, t)).expect("step");
+        *task.last_step().expect("ran")
+    };
+    // The store's mission at start: east, 120 m, 22 m/s.
+    let s = step(&mut task);
+    assert_eq!((s.decision.mode, s.waypoint), (FlightMode::Auto, 0));
+    assert!((s.targets.course_rad - core::f32::consts::FRAC_PI_2).abs() < 1e-3);
+    assert_eq!(
+        (s.targets.altitude_m, s.targets.airspeed_mps),
+        (120.0, 22.0)
+    );
+    // A new mission in flight: west, then south; flown from its first waypoint.
+    {
+        let mut st = store.borrow_mut();
+        st.stage(0, 2, wp(0.0, -1000.0, 200.0, 27.0))
+            .expect("item 0");
+        st.stage(1, 2, wp(-1000.0, 0.0, 300.0, 30.0))
+            .expect("item 1");
+        st.commit(2, 30.0, 150.0, true).expect("commit");
+    }
+    let s = step(&mut task);
+    assert_eq!(s.waypoint, 0);
+    assert!((s.targets.course_rad + core::f32::consts::FRAC_PI_2).abs() < 1e-3);
+    assert_eq!(
+        (s.targets.altitude_m, s.targets.airspeed_mps),
+        (200.0, 27.0)
+    );
+    // Set current: the second waypoint, south.
+    store.borrow_mut().set_current(1).expect("exists");
+    let s = step(&mut task);
+    assert_eq!(s.waypoint, 1);
+    assert!((s.targets.course_rad.abs() - core::f32::consts::PI).abs() < 1e-3);
+    assert_eq!(
+        (s.targets.altitude_m, s.targets.airspeed_mps),
+        (300.0, 30.0)
+    );
+    // While the store is busy, the mission of the last step.
+    {
+        let _busy = store.borrow_mut();
+        let s = step(&mut task);
+        assert_eq!((s.waypoint, s.targets.altitude_m), (1, 300.0));
+    }
+    // Cleared: no mission, so AUTO is not flown on a mission (no waypoint).
+    store.borrow_mut().clear();
+    let s = step(&mut task);
+    assert_eq!(s.waypoint, u8::MAX);
+}

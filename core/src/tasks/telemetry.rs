@@ -21,6 +21,7 @@
 use super::tap::Tap;
 use super::task_log::TaskLog;
 use crate::comm::{LatestSlot, LogHealthCell};
+use crate::control::mission_store::MissionStore;
 use crate::control::mode::FlightMode;
 use crate::executive::{Task, TaskContext, TaskFault};
 use crate::horizon::HorizonAttitude;
@@ -67,6 +68,8 @@ pub struct LinkShared<'a> {
     pub ingress: Option<&'a IngressCounters>,
     /// The flight log's free space and losses, as the shell's log writer measures them.
     pub log_health: Option<&'a LogHealthCell>,
+    /// The mission slot the control task flies from (`None`: mission commands are refused).
+    pub mission: Option<&'a RefCell<MissionStore>>,
 }
 
 pub struct TelemetryConfig {
@@ -265,8 +268,49 @@ impl<'a, P: DatagramPort, S: RecordSink> TelemetryTask<'a, P, S> {
                 self.shared.stop.store(true, Ordering::Relaxed);
                 (AckResult::Accepted, None)
             }
+            Command::MissionClear
+            | Command::MissionItem { .. }
+            | Command::MissionCommit { .. }
+            | Command::MissionSetCurrent { .. } => (self.mission_command(command), None),
         };
         self.send(now, Telemetry::CommandAck(ack(result, in_force)), true);
+    }
+
+    /// Applies a mission command to the store: `Refused` when it is out of sequence,
+    /// names no waypoint, or there is no store (or it is busy).
+    fn mission_command(&self, command: &Command) -> AckResult {
+        let Some(mut store) = self.shared.mission.and_then(|m| m.try_borrow_mut().ok()) else {
+            return AckResult::Refused;
+        };
+        let done = match *command {
+            Command::MissionClear => {
+                store.clear();
+                Ok(())
+            }
+            Command::MissionItem {
+                index,
+                count,
+                waypoint,
+            } => store.stage(usize::from(index), usize::from(count), waypoint),
+            Command::MissionCommit {
+                count,
+                switch_radius_m,
+                loiter_radius_m,
+                loiter_clockwise,
+            } => store.commit(
+                usize::from(count),
+                switch_radius_m,
+                loiter_radius_m,
+                loiter_clockwise,
+            ),
+            Command::MissionSetCurrent { index } => store.set_current(usize::from(index)),
+            _ => return AckResult::Refused,
+        };
+        if done.is_ok() {
+            AckResult::Accepted
+        } else {
+            AckResult::Refused
+        }
     }
 
     fn receive_commands(&mut self, cx: &TaskContext<'_>) {

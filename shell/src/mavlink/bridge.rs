@@ -100,8 +100,32 @@ struct Socket {
 }
 
 enum Pending {
-    ParamSet { index: usize },
-    Command { command: MavCmd, to: (u8, u8) },
+    ParamSet {
+        index: usize,
+    },
+    Command {
+        command: MavCmd,
+        to: (u8, u8),
+    },
+    /// One of the link commands of the mission change under way.
+    Mission,
+}
+
+/// A mission change the vehicle is asked for: its link commands, answered one by one.
+enum MissionChange {
+    Upload(Box<Mission>),
+    Clear,
+    /// Fly from this waypoint.
+    SetCurrent(usize),
+}
+
+struct MissionInFlight {
+    change: MissionChange,
+    to: (u8, u8),
+    /// Link commands not answered yet.
+    outstanding: usize,
+    /// One was refused, or never answered.
+    failed: bool,
 }
 
 enum Upload {
@@ -137,6 +161,11 @@ struct Bridge {
     mission: Option<Mission>,
     items: Option<Items>,
     upload: Upload,
+    /// The mission change the vehicle has not answered in full yet.
+    changing: Option<MissionInFlight>,
+    /// The control task's telemetry count when the mission last changed: its waypoint is
+    /// the old mission's until two newer samples came.
+    changed_at_update: Option<u64>,
     /// The active waypoint while in AUTO, and the waypoints reported reached.
     waypoint: Option<usize>,
     reached: Vec<bool>,
@@ -205,6 +234,8 @@ pub fn spawn(setup: BridgeSetup) -> Result<JoinHandle<()>, String> {
         mission: setup.mission,
         items: None,
         upload: Upload::Idle,
+        changing: None,
+        changed_at_update: None,
         waypoint: None,
         stop: setup.plan.stop,
         started: Instant::now(),
@@ -483,6 +514,12 @@ impl Bridge {
         if !self.in_auto() {
             return;
         }
+        if let Some(at) = self.changed_at_update {
+            if self.view.updates("control") < at.saturating_add(2) {
+                return;
+            }
+            self.changed_at_update = None;
+        }
         let Some(active) = self.view.get("control", "waypoint") else {
             return;
         };
@@ -641,6 +678,7 @@ impl Bridge {
                     Pending::Command { command, to } => {
                         self.send(&ack(command, MavResult::MAV_RESULT_FAILED, to));
                     }
+                    Pending::Mission => self.mission_answered(false),
                 }
             }
         }
@@ -727,6 +765,7 @@ impl Bridge {
                 };
                 self.send(&ack(command, result, to));
             }
+            Pending::Mission => self.mission_answered(a.result == AckResult::Accepted),
         }
     }
 
@@ -793,22 +832,15 @@ impl Bridge {
                     from,
                 ));
             }
-            MavMessage::MISSION_CLEAR_ALL(_) => {
-                self.send(&statustext(
-                    MavSeverity::MAV_SEVERITY_WARNING,
-                    "mission: cannot be cleared in flight",
-                ));
-                self.send(&mission_ack(MavMissionResult::MAV_MISSION_DENIED, from));
-            }
-            MavMessage::MISSION_SET_CURRENT(_) => {
-                self.send(&statustext(
-                    MavSeverity::MAV_SEVERITY_WARNING,
-                    "mission: set current not supported",
-                ));
-                if let Some(m) = self.mission_current() {
-                    self.send(&m);
+            MavMessage::MISSION_CLEAR_ALL(c) => {
+                if c.mission_type != MavMissionType::MAV_MISSION_TYPE_MISSION {
+                    // No fences or rally points to clear: done.
+                    self.send(&mission_ack(MavMissionResult::MAV_MISSION_ACCEPTED, from));
+                } else {
+                    self.change_mission(MissionChange::Clear, from);
                 }
             }
+            MavMessage::MISSION_SET_CURRENT(c) => self.set_current(c.seq, from),
             _ => {}
         }
     }
@@ -1092,9 +1124,8 @@ impl Bridge {
                 return;
             }
         };
-        // The vehicle flies the mission it was started with (`--mission`); the core has no
-        // way yet to take a new one in flight. An upload of that same mission is accepted;
-        // any other is refused, and says so, rather than accepted and not flown.
+        // The mission in force again (what a ground station uploads after a download, or to
+        // check one): nothing to change, and the airplane flies on where it was.
         let same = self
             .mission
             .as_ref()
@@ -1102,11 +1133,156 @@ impl Bridge {
         if same {
             self.send(&mission_ack(MavMissionResult::MAV_MISSION_ACCEPTED, from));
         } else {
-            self.send(&statustext(
-                MavSeverity::MAV_SEVERITY_WARNING,
-                "mission: new missions in flight not supported",
-            ));
-            self.send(&mission_ack(MavMissionResult::MAV_MISSION_DENIED, from));
+            self.change_mission(MissionChange::Upload(Box::new(uploaded)), from);
+        }
+    }
+
+    /// MISSION_SET_CURRENT: item `seq`'s waypoint (a speed change: the waypoint after it;
+    /// the loiter: the last waypoint). Answered with MISSION_CURRENT once the vehicle took
+    /// it; refused with a STATUSTEXT and the unchanged MISSION_CURRENT.
+    fn set_current(&mut self, seq: u16, from: (u8, u8)) {
+        let waypoint = self.items.as_ref().and_then(|items| {
+            if usize::from(seq) >= items.items.len() {
+                return None;
+            }
+            let at = items.waypoint_seq.iter().position(|w| *w >= seq);
+            at.or_else(|| items.waypoint_seq.len().checked_sub(1))
+        });
+        match waypoint {
+            Some(w) => self.change_mission(MissionChange::SetCurrent(w), from),
+            None => {
+                self.send(&statustext(
+                    MavSeverity::MAV_SEVERITY_WARNING,
+                    &format!("mission: no item {seq} to fly"),
+                ));
+                if let Some(m) = self.mission_current() {
+                    self.send(&m);
+                }
+            }
+        }
+    }
+
+    /// Sends a mission change to the vehicle as link commands; the ground station is answered
+    /// when the vehicle has answered them all ([`Self::mission_answered`]).
+    fn change_mission(&mut self, change: MissionChange, from: (u8, u8)) {
+        if self.changing.is_some() {
+            self.mission_refused(&change, from, "mission: a change is under way");
+            return;
+        }
+        let commands: Vec<Command> = match &change {
+            MissionChange::Clear => vec![Command::MissionClear],
+            MissionChange::SetCurrent(w) => match u8::try_from(*w) {
+                Ok(index) => vec![Command::MissionSetCurrent { index }],
+                Err(_) => Vec::new(),
+            },
+            MissionChange::Upload(m) => match u8::try_from(m.waypoints.len()) {
+                Ok(count) if count > 0 => {
+                    let mut c: Vec<Command> = (0..count)
+                        .zip(m.waypoints.iter())
+                        .map(|(index, w)| Command::MissionItem {
+                            index,
+                            count,
+                            waypoint: *w,
+                        })
+                        .collect();
+                    c.push(Command::MissionCommit {
+                        count,
+                        switch_radius_m: m.switch_radius_m,
+                        loiter_radius_m: m.loiter_radius_m,
+                        loiter_clockwise: m.loiter_clockwise,
+                    });
+                    c
+                }
+                _ => Vec::new(),
+            },
+        };
+        if commands.is_empty() {
+            self.mission_refused(&change, from, "mission: nothing to fly");
+            return;
+        }
+        let mut outstanding = 0;
+        let mut failed = false;
+        for command in commands {
+            match self.command_vehicle(command) {
+                Some(seq) => {
+                    self.pending.insert(seq, (Pending::Mission, Instant::now()));
+                    outstanding += 1;
+                }
+                None => failed = true,
+            }
+        }
+        self.changing = Some(MissionInFlight {
+            change,
+            to: from,
+            outstanding,
+            failed,
+        });
+        if outstanding == 0 {
+            self.mission_finished();
+        }
+    }
+
+    /// One answer (or a timeout: `accepted` false) to the mission change's commands.
+    fn mission_answered(&mut self, accepted: bool) {
+        let Some(c) = self.changing.as_mut() else {
+            return;
+        };
+        c.outstanding = c.outstanding.saturating_sub(1);
+        c.failed |= !accepted;
+        if c.outstanding == 0 {
+            self.mission_finished();
+        }
+    }
+
+    fn mission_refused(&mut self, change: &MissionChange, to: (u8, u8), text: &str) {
+        self.send(&statustext(MavSeverity::MAV_SEVERITY_WARNING, text));
+        match change {
+            MissionChange::Upload(_) | MissionChange::Clear => {
+                self.send(&mission_ack(MavMissionResult::MAV_MISSION_DENIED, to));
+            }
+            MissionChange::SetCurrent(_) => {
+                if let Some(m) = self.mission_current() {
+                    self.send(&m);
+                }
+            }
+        }
+    }
+
+    /// Every command answered: what the vehicle flies now is what the ground is told.
+    fn mission_finished(&mut self) {
+        let Some(c) = self.changing.take() else {
+            return;
+        };
+        if c.failed {
+            self.mission_refused(&c.change, c.to, "mission: the vehicle refused the change");
+            return;
+        }
+        self.changed_at_update = Some(self.view.updates("control"));
+        match c.change {
+            MissionChange::Upload(m) => {
+                self.reached = vec![false; m.waypoints.len()];
+                self.items = self.home.as_ref().map(|h| items_from_mission(&m, h));
+                self.mission = Some(*m);
+                self.waypoint = None;
+                self.send(&mission_ack(MavMissionResult::MAV_MISSION_ACCEPTED, c.to));
+            }
+            MissionChange::Clear => {
+                self.mission = None;
+                self.items = None;
+                self.reached.clear();
+                self.waypoint = None;
+                self.send(&mission_ack(MavMissionResult::MAV_MISSION_ACCEPTED, c.to));
+            }
+            MissionChange::SetCurrent(w) => {
+                // The waypoints before it are skipped, not reached.
+                for (i, r) in self.reached.iter_mut().enumerate() {
+                    *r = i < w;
+                }
+                self.waypoint = Some(w);
+                if let Some(m) = self.mission_current() {
+                    self.send(&m);
+                }
+            }
         }
     }
 }

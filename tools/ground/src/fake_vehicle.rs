@@ -327,6 +327,11 @@ impl FakeVehicle {
                 }
             }
             Command::HorizonAttitude(_) => ack(AckResult::Accepted, None),
+            // No mission slot in the fake vehicle.
+            Command::MissionClear
+            | Command::MissionItem { .. }
+            | Command::MissionCommit { .. }
+            | Command::MissionSetCurrent { .. } => ack(AckResult::Refused, None),
             Command::Stop => {
                 self.report.stopped_by_command = true;
                 ack(AckResult::Accepted, None)
