@@ -11,7 +11,7 @@
 use skyframe_core::link::params::ParamTable;
 use skyframe_core::tasks::control::{ControlSettings, define_params};
 use skyframe_shell::mavlink::params::mavlink_id;
-use skyframe_tests::{csv_rows, scratch, skyframe, to_csv, workspace};
+use skyframe_tests::{csv_column, csv_columns, csv_rows, scratch, skyframe, to_csv, workspace};
 use std::net::UdpSocket;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
@@ -114,39 +114,15 @@ fn finish_sim(child: Child) -> serde_json::Value {
     })
 }
 
-/// Column `name` of a `skyframe-log to-csv` file.
-fn column(csv: &Path, name: &str) -> Vec<f64> {
-    let text = std::fs::read_to_string(csv).expect("csv");
-    let header = text
-        .lines()
-        .find(|l| l.starts_with("% time,"))
-        .expect("header");
-    let index = header
-        .trim_start_matches("% ")
-        .split(',')
-        .position(|c| c == name)
-        .unwrap_or_else(|| panic!("{name} not in {header}"));
-    csv_rows(csv).iter().map(|r| r[index]).collect()
-}
-
 /// The row of a `skyframe-log to-csv` file at log TIME `t_s` (to the millisecond), by
 /// column name.
 fn row_at(csv: &Path, t_s: f64) -> std::collections::HashMap<String, f64> {
-    let text = std::fs::read_to_string(csv).expect("csv");
-    let header = text
-        .lines()
-        .find(|l| l.starts_with("% time,"))
-        .expect("header");
-    let names: Vec<&str> = header.trim_start_matches("% ").split(',').collect();
+    let names = csv_columns(csv);
     let row = csv_rows(csv)
         .into_iter()
         .find(|r| (r[0] - t_s).abs() < 0.0005)
         .unwrap_or_else(|| panic!("no record at {t_s} s in {}", csv.display()));
-    names
-        .iter()
-        .zip(row)
-        .map(|(n, v)| (n.to_string(), v))
-        .collect()
+    names.iter().zip(row).map(|(n, v)| (n.clone(), v)).collect()
 }
 
 /// Metres between two latitude/longitude points (equirectangular: fine over metres).
@@ -199,9 +175,9 @@ fn a_parked_vehicle_speaks_mavlink_to_pymavlink() {
     let csv = flight_csv(&report, &dir);
 
     // The scenario's home: the simulator's GPS origin, as its truth log records it.
-    let home_lat = column(&csv.join("truth.2.csv"), "origin_lat_deg")[0];
-    let home_lon = column(&csv.join("truth.2.csv"), "origin_lon_deg")[0];
-    let home_alt = column(&csv.join("truth.2.csv"), "origin_alt_m")[0];
+    let home_lat = csv_column(&csv.join("truth.2.csv"), "origin_lat_deg")[0];
+    let home_lon = csv_column(&csv.join("truth.2.csv"), "origin_lon_deg")[0];
+    let home_alt = csv_column(&csv.join("truth.2.csv"), "origin_alt_m")[0];
 
     // HEARTBEAT: 1 Hz, a fixed wing, generic autopilot, custom mode = the logged mode.
     let beats = seen["heartbeats"].as_array().expect("heartbeats");
@@ -213,7 +189,7 @@ fn a_parked_vehicle_speaks_mavlink_to_pymavlink() {
     assert_eq!(beat["type"], 1, "MAV_TYPE_FIXED_WING");
     assert_eq!(beat["autopilot"], 0, "MAV_AUTOPILOT_GENERIC");
     assert_eq!(f(&beat["base_mode"]) as u32 & 1, 1, "CUSTOM_MODE_ENABLED");
-    let logged_mode = column(&csv.join("control.1.csv"), "mode");
+    let logged_mode = csv_column(&csv.join("control.1.csv"), "mode");
     assert!(logged_mode.iter().all(|m| *m == 0.0), "parked in manual");
     assert_eq!(f(&beat["custom_mode"]), 0.0);
 
@@ -309,7 +285,7 @@ fn a_parked_vehicle_speaks_mavlink_to_pymavlink() {
     let imu = last("SCALED_IMU");
     assert!((f(&imu["zacc"]) + 1000.0).abs() < 50.0, "{imu}");
     // Battery and sticks equal to what the servo board logged.
-    let volts = column(&csv.join("servo.1.csv"), "batt_avionics_v");
+    let volts = csv_column(&csv.join("servo.1.csv"), "batt_avionics_v");
     let mv = f(&last("BATTERY_STATUS")["voltages"][0]);
     let (lo, hi) = volts
         .iter()
@@ -324,7 +300,7 @@ fn a_parked_vehicle_speaks_mavlink_to_pymavlink() {
         "SYS_STATUS {mv} mV not in the log's {lo}..{hi} V"
     );
     for ch in 1..=8 {
-        let logged = column(&csv.join("servo.1.csv"), &format!("ch{ch}_us"));
+        let logged = csv_column(&csv.join("servo.1.csv"), &format!("ch{ch}_us"));
         let sent = f(&last("RC_CHANNELS")[format!("chan{ch}_raw").as_str()]);
         assert!(logged.contains(&sent), "chan{ch}_raw {sent} never logged");
     }
@@ -337,9 +313,9 @@ fn a_parked_vehicle_speaks_mavlink_to_pymavlink() {
     // The injected overruns, as the health log counted them, reach the ground as text.
     let health = csv.join("health.1.csv");
     let imu_task = 0.0; // the frame table's first task
-    let overruns = column(&health, "task")
+    let overruns = csv_column(&health, "task")
         .iter()
-        .zip(column(&health, "overruns_budget"))
+        .zip(csv_column(&health, "overruns_budget"))
         .filter(|(t, _)| **t == imu_task)
         .map(|(_, n)| n)
         .fold(0.0, f64::max);
@@ -400,7 +376,7 @@ fn a_parked_vehicle_speaks_mavlink_to_pymavlink() {
     assert_eq!(f(&seen["set_accepted"]) as f32, 0.75);
     assert_eq!(f(&seen["set_rejected"]) as f32, 0.75);
     assert_eq!(f(&seen["read_back"]) as f32, 0.75);
-    let gains = column(&csv.join("control.2.csv"), "roll_kp");
+    let gains = csv_column(&csv.join("control.2.csv"), "roll_kp");
     assert_eq!(gains.first(), Some(&1.2));
     assert_eq!(gains.last(), Some(&0.75), "the log's roll gain");
 
@@ -500,8 +476,8 @@ fn with_speedup_the_auto_mission_reports_every_waypoint_reached() {
     );
     // The log agrees: the control task's active waypoint went through all of them in AUTO.
     let csv = flight_csv(&report, &dir);
-    let mode = column(&csv.join("control.1.csv"), "mode");
-    let waypoint = column(&csv.join("control.1.csv"), "waypoint");
+    let mode = csv_column(&csv.join("control.1.csv"), "mode");
+    let waypoint = csv_column(&csv.join("control.1.csv"), "waypoint");
     let highest = mode
         .iter()
         .zip(&waypoint)
@@ -513,7 +489,7 @@ fn with_speedup_the_auto_mission_reports_every_waypoint_reached() {
     // (GLOBAL_POSITION_INT samples it at 5 Hz of wall time: 1.6 s of flight at 8×).
     let landed = seen["landed_states"].as_array().expect("landed");
     assert!(landed.contains(&serde_json::json!(2)), "IN_AIR: {landed:?}");
-    let pd = column(&csv.join("estimator.1.csv"), "pd_m");
+    let pd = csv_column(&csv.join("estimator.1.csv"), "pd_m");
     let logged_top = pd.iter().fold(f64::MIN, |a, d| a.max(-d));
     let seen_top = f(&seen["highest_relative_alt_mm"]) * 1e-3;
     assert!(
@@ -597,8 +573,8 @@ fn in_flight_a_new_mission_is_flown_then_set_current_and_clear_all_take_effect()
     // The log: the control task flew the new mission's altitudes (the first mission's + 10 m,
     // which it never asked for), then no waypoint once cleared.
     let csv = flight_csv(&report, &dir);
-    let alt_c = column(&csv.join("control.1.csv"), "alt_c_m");
-    let waypoint = column(&csv.join("control.1.csv"), "waypoint");
+    let alt_c = csv_column(&csv.join("control.1.csv"), "alt_c_m");
+    let waypoint = csv_column(&csv.join("control.1.csv"), "waypoint");
     for u in up.iter().filter(|i| i["command"] == 16) {
         let z = f(&u["z"]) as f32;
         assert!(
@@ -651,7 +627,7 @@ fn with_a_key_only_signed_sets_change_anything() {
     assert_eq!(seen["heartbeat_signed"], true, "telemetry is signed");
     assert_eq!(report["mavlink"]["unsigned"], 1, "{}", report["mavlink"]);
     let csv = flight_csv(&report, &dir);
-    let gains = column(&csv.join("control.2.csv"), "roll_kp");
+    let gains = csv_column(&csv.join("control.2.csv"), "roll_kp");
     assert_eq!(gains.last(), Some(&0.65));
     assert!(
         !gains.contains(&0.6),

@@ -4,23 +4,8 @@
 //! checks it on the formats the tasks actually write, so a change to a task's record that
 //! the converter does not follow fails here.
 
-use skyframe_tests::{binary, csv_rows, scratch, skyframe, to_csv};
+use skyframe_tests::{binary, csv_column, scratch, skyframe, to_csv};
 use std::process::Command;
-
-/// Column `name` of a converted CSV whose `% time,…` header line names the columns.
-fn csv_column(csv: &std::path::Path, name: &str) -> Vec<f64> {
-    let text = std::fs::read_to_string(csv).expect("csv");
-    let header = text
-        .lines()
-        .find(|l| l.starts_with("% time,"))
-        .expect("header");
-    let index = header
-        .trim_start_matches("% ")
-        .split(',')
-        .position(|c| c == name)
-        .unwrap_or_else(|| panic!("{name} not in {header}"));
-    csv_rows(csv).iter().map(|r| r[index]).collect()
-}
 
 #[test]
 fn a_simulated_flight_reads_back_in_pyulog_with_px4_topics_equal_to_the_log() {

@@ -688,10 +688,7 @@ pub fn set_parameters(table: &mut ParamTable, parameters: &[(String, f64)]) -> R
                 names.join(", ")
             )
         };
-        let Some(param) = Name::new(name).and_then(|n| table.index_of(&n).map(|_| n)) else {
-            return Err(known());
-        };
-        let Some(in_table) = table.get(name) else {
+        let (Some(param), Some(in_table)) = (Name::new(name), table.get(name)) else {
             return Err(known());
         };
         let typed = match in_table.value_type() {

@@ -95,3 +95,27 @@ pub fn csv_rows(csv: &Path) -> Vec<Vec<f64>> {
         })
         .collect()
 }
+
+/// The column names of a converted CSV, from its `% time,…` header line.
+pub fn csv_columns(csv: &Path) -> Vec<String> {
+    let text = std::fs::read_to_string(csv).unwrap_or_else(|e| panic!("{}: {e}", csv.display()));
+    let header = text
+        .lines()
+        .find(|l| l.starts_with("% time,"))
+        .unwrap_or_else(|| panic!("{}: no column header", csv.display()));
+    header
+        .trim_start_matches("% ")
+        .split(',')
+        .map(str::to_string)
+        .collect()
+}
+
+/// Column `name` of a converted CSV.
+pub fn csv_column(csv: &Path, name: &str) -> Vec<f64> {
+    let columns = csv_columns(csv);
+    let index = columns
+        .iter()
+        .position(|c| c == name)
+        .unwrap_or_else(|| panic!("{name} not in {columns:?}"));
+    csv_rows(csv).iter().map(|r| r[index]).collect()
+}
