@@ -30,6 +30,9 @@ fn main() {
         .unwrap_or_else(|e| fail(&format!("cannot read {}: {e}", path.display())));
     let schedule = file::ScheduleFile::parse(&text)
         .unwrap_or_else(|e| fail(&format!("{}: {e}", path.display())));
+    for note in &schedule.renamed {
+        println!("cargo::warning={}: {note}", path.display());
+    }
     let exec = schedule.executive_input();
 
     let generated = schedule.with_inputs(|tasks| {

@@ -294,9 +294,8 @@ fn stream_of(task: &str) -> Option<&'static str> {
         "servo" => Some("servo"),
         "estimator" => Some("estimator"),
         "control" => Some("control"),
-        // The task "logging" snapshots every task's health; "health" is the watchdog.
-        "logging" => Some("health"),
-        "health" => Some("watchdog"),
+        "health" => Some("health"),
+        "watchdog" => Some("watchdog"),
         "telemetry" => Some("link"),
         _ => None,
     }

@@ -32,7 +32,12 @@ pub fn check_file_with(
     let file = ScheduleFile::parse(&text).map_err(|e| format!("{}: {e}", path.display()))?;
     let exec = file.executive_input();
     let names = crate::tasks::task_names(registry);
-    Ok(file.with_inputs(|tasks| {
+    let warnings: String = file
+        .renamed
+        .iter()
+        .map(|note| format!("warning: {}: {note}\n", path.display()))
+        .collect();
+    let checked = file.with_inputs(|tasks| {
         // A name skyframe has no task for first: the clearest message. A registered task
         // the schedule leaves out after the timing analysis, which a partial schedule can
         // still be checked for.
@@ -63,7 +68,11 @@ pub fn check_file_with(
                 feasible: false,
             },
         }
-    }))
+    });
+    Ok(Checked {
+        report: warnings + &checked.report,
+        ..checked
+    })
 }
 
 /// The frame table of a schedule file, for flying a schedule other than the shipped one with
@@ -77,6 +86,9 @@ pub fn load_frame_table(
 ) -> Result<&'static FrameTable, String> {
     let text = read_text(path, "schedule", CONFIG_LIMIT)?;
     let file = ScheduleFile::parse(&text).map_err(|e| format!("{}: {e}", path.display()))?;
+    for note in &file.renamed {
+        log::warn!("{}: {note}", path.display());
+    }
     let exec = file.executive_input();
     file.with_inputs(|tasks| {
         let scheduled: Vec<&str> = tasks.iter().map(|t| t.name).collect();
@@ -238,6 +250,39 @@ mod tests {
     }
 
     #[test]
+    fn a_schedule_with_the_old_task_names_reads_with_a_warning_per_rename() {
+        use skyframe_core::schedule::SHIPPED;
+        let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("../schedule.toml");
+        let text = std::fs::read_to_string(&shipped).expect("shipped schedule");
+        // The shipped file as it was before the rename: `logging` the snapshots, `health`
+        // the watchdog.
+        let old = text
+            .replace("name = \"health\",   ", "name = \"logging\",  ")
+            .replace("name = \"watchdog\", ", "name = \"health\",   ");
+        assert_ne!(old, text);
+        let path = write("old-names.toml", &old);
+        let checked = check_file(&path).expect("readable");
+        assert!(checked.feasible, "{}", checked.report);
+        for rename in [
+            "`logging` is now called `health`",
+            "`health` is now called `watchdog`",
+        ] {
+            assert!(
+                checked
+                    .report
+                    .lines()
+                    .any(|l| l.starts_with("warning: ") && l.contains(rename)),
+                "{}",
+                checked.report
+            );
+        }
+        // Each old entry keeps its timing under its new name: the same table as shipped.
+        let table = load_frame_table(&path, crate::tasks::REGISTRY).expect("loads");
+        assert_eq!(table.tasks, SHIPPED.tasks);
+        assert_eq!(table.frames, SHIPPED.frames);
+    }
+
+    #[test]
     fn over_full_frame_is_infeasible_and_named() {
         let path = write(
             "overfull.toml",
@@ -293,7 +338,7 @@ late_start_us = 500
             checked.report.contains(
                 "baro.toml: task `baro` is in the schedule but skyframe has no such task \
                  (registered in shell/src/tasks.rs: imu, gps, servo, estimator, control, \
-                 telemetry, logging, health)"
+                 telemetry, health, watchdog)"
             ),
             "{}",
             checked.report

@@ -12,6 +12,7 @@ use crate::simflight::VirtualTime;
 use crate::vehicle::VehicleConfig;
 use clap::{Args, Parser, Subcommand};
 use skyframe_core::executive::{FaultPlan, OverrunInjection};
+use skyframe_core::schedule::analysis::renamed_task;
 use skyframe_core::schedule::{FrameTable, SHIPPED};
 use skyframe_sim::plant::PlantKind;
 use skyframe_sim::scenario::{FaultKind, Scenario};
@@ -43,7 +44,7 @@ pub struct Cli {
 pub enum Command {
     /// Fly the simulated airplane: the whole on-board system against simulated devices.
     Sim(SimArgs),
-    /// Fly the executive with no devices (idle tasks but the watchdog and logging): the
+    /// Fly the executive with no devices (idle tasks but the watchdog and the health snapshots): the
     /// schedule, its timing and its logs alone.
     Idle(IdleArgs),
     /// Fly the real airplane: devices on the serial ports `--vehicle` names.
@@ -536,7 +537,16 @@ pub fn fault_plan(table: &FrameTable, injections: &[Injection]) -> Result<FaultP
     let mut plan = FaultPlan::new();
     for i in injections {
         check_injection_range(i)?;
-        let task = table.task_index(&i.task).ok_or_else(|| {
+        let renamed = renamed_task(&i.task).filter(|_| table.task_index(&i.task).is_none());
+        if let Some(new) = renamed {
+            log::warn!(
+                "--inject-overrun {}: task `{}` is now called `{new}`",
+                i.task,
+                i.task
+            );
+        }
+        let name = renamed.unwrap_or(&i.task);
+        let task = table.task_index(name).ok_or_else(|| {
             let names: Vec<&str> = table.tasks.iter().map(|t| t.name).collect();
             format!(
                 "--inject-overrun: no task `{}` in the schedule ({})",
@@ -1034,6 +1044,21 @@ mod tests {
         ] {
             assert!(parse_injection(bad).is_err(), "{bad}");
         }
+    }
+
+    #[test]
+    fn fault_plan_takes_a_renamed_task_by_its_old_name() {
+        let old = parse_injection("logging:10@1..2").expect("parses");
+        let new = parse_injection("health:10@1..2").expect("parses");
+        let (old, new) = (
+            fault_plan(&SHIPPED, &[old]).expect("old name"),
+            fault_plan(&SHIPPED, &[new]).expect("new name"),
+        );
+        let health = SHIPPED.task_index("health").expect("health");
+        assert_eq!(old.extra_ns(health, 1), 10_000);
+        assert_eq!(new.extra_ns(health, 1), 10_000);
+        let watchdog = SHIPPED.task_index("watchdog").expect("watchdog");
+        assert_eq!(old.extra_ns(watchdog, 1), 0);
     }
 
     #[test]

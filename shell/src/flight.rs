@@ -211,7 +211,7 @@ struct SerialDevice {
     join: std::thread::JoinHandle<()>,
 }
 
-/// Flies `table`: the watchdog in `health`, snapshots in `logging`, device tasks in `imu`,
+/// Flies `table`: the watchdog in `watchdog`, snapshots in `health`, device tasks in `imu`,
 /// `gps` and `servo` when the plan has devices, idle tasks elsewhere. Everything is logged
 /// under `log_dir/<start time>/`.
 pub fn fly<P: Platform>(

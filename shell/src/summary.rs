@@ -3,7 +3,7 @@
 use crate::host::{RunSummary, StopReason, TimerCheck};
 use crate::platform::RtReport;
 use serde::Serialize;
-use skyframe_core::tasks::health::WatchdogReport;
+use skyframe_core::tasks::watchdog::WatchdogReport;
 
 /// One task's health at the end of a run.
 #[derive(Debug, Serialize)]

@@ -28,12 +28,12 @@ use skyframe_core::schedule::{FrameTable, SHIPPED};
 use skyframe_core::tasks::control::{ControlSettings, ControlTask};
 use skyframe_core::tasks::estimator::EstimatorTask;
 use skyframe_core::tasks::gps::GpsTask;
-use skyframe_core::tasks::health::{HealthTask, WatchdogReport};
+use skyframe_core::tasks::health::HealthTask;
 use skyframe_core::tasks::imu::ImuTask;
-use skyframe_core::tasks::logging::LoggingTask;
 use skyframe_core::tasks::servo::{PilotInput, ServoTask};
 use skyframe_core::tasks::tap::{Tap, TappedSink};
 use skyframe_core::tasks::telemetry::{LinkShared, TelemetryConfig, TelemetryTask};
+use skyframe_core::tasks::watchdog::{WatchdogReport, WatchdogTask};
 use std::cell::{Cell, RefCell};
 use std::sync::atomic::AtomicBool;
 
@@ -107,13 +107,13 @@ pub const REGISTRY: &[TaskEntry] = &[
         build: build_telemetry,
     },
     TaskEntry {
-        name: "logging",
+        name: "health",
         log: "health",
         needs: Needs::Nothing,
-        build: build_logging,
+        build: build_health,
     },
     TaskEntry {
-        name: "health",
+        name: "watchdog",
         log: "watchdog",
         needs: Needs::Nothing,
         build: build_watchdog,
@@ -337,7 +337,7 @@ impl FlightTask for ServoTask<'_, DevicePort, Log<'_>> {
     }
 }
 
-impl FlightTask for HealthTask<'_, Log<'_>> {
+impl FlightTask for WatchdogTask<'_, Log<'_>> {
     fn report(&self, reports: &mut TaskReports) {
         reports.watchdog = Some(*self.report());
     }
@@ -351,7 +351,7 @@ impl FlightTask for TelemetryTask<'_, crate::link::RingDatagrams, Log<'_>> {
 
 impl FlightTask for EstimatorTask<'_, Log<'_>> {}
 impl FlightTask for ControlTask<'_, Log<'_>> {}
-impl FlightTask for LoggingTask<Log<'_>> {}
+impl FlightTask for HealthTask<Log<'_>> {}
 
 fn build_imu<'w>(w: &mut Wiring<'w>) -> Result<Box<dyn FlightTask + 'w>, String> {
     let (port, stale_ns) = w.device()?;
@@ -450,16 +450,16 @@ fn build_telemetry<'w>(w: &mut Wiring<'w>) -> Result<Box<dyn FlightTask + 'w>, S
     )))
 }
 
-fn build_logging<'w>(w: &mut Wiring<'w>) -> Result<Box<dyn FlightTask + 'w>, String> {
+fn build_health<'w>(w: &mut Wiring<'w>) -> Result<Box<dyn FlightTask + 'w>, String> {
     let log = w.tapped_log()?;
-    Ok(Box::new(LoggingTask::new(log, HEALTH_SNAPSHOT_NS)))
+    Ok(Box::new(HealthTask::new(log, HEALTH_SNAPSHOT_NS)))
 }
 
 fn build_watchdog<'w>(w: &mut Wiring<'w>) -> Result<Box<dyn FlightTask + 'w>, String> {
     let log = w.tapped_log()?;
     let shared = w.shared;
     Ok(Box::new(
-        HealthTask::new(&shared.watchdog)
+        WatchdogTask::new(&shared.watchdog)
             .logging_to(log)
             .with_period(&shared.health_period_ms),
     ))

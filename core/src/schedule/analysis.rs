@@ -21,6 +21,22 @@
 
 use core::fmt;
 
+/// Tasks renamed on 2026-11-25, old name first, so that a task is named for the stream it
+/// writes: `logging` wrote `health.bin`, and `health`, the watchdog, wrote `watchdog.bin`.
+/// A schedule file with the old names (it names `logging` and no `watchdog`) still reads,
+/// with a warning, until the release after next; `--inject-overrun` takes `logging` the same
+/// way. `health` alone cannot be told apart, so it always means the new task.
+pub const RENAMED_TASKS: [(&str, &str); 2] = [("logging", "health"), ("health", "watchdog")];
+
+/// The new name of a task named by its old one, where the old name can only mean that task
+/// (`logging` → `health`): for `--inject-overrun` and scenario faults, which name one task.
+pub fn renamed_task(name: &str) -> Option<&'static str> {
+    RENAMED_TASKS
+        .iter()
+        .find(|(old, _)| *old == name && !RENAMED_TASKS.iter().any(|(_, new)| new == old))
+        .map(|(_, new)| *new)
+}
+
 /// Most tasks a schedule may have: the frame table keeps a task set as a `u32` bit mask.
 pub const MAX_TASKS: usize = 32;
 /// Most minor frames in one major frame (e.g. a 1 ms minor frame with a 1 s task).

@@ -2,7 +2,7 @@
 //! (included with `#[path]`) and, behind the `schedule-file` feature, by
 //! `skyframe check-schedule`.
 
-use super::analysis::{ExecutiveInput, OverrunPolicy, TaskInput};
+use super::analysis::{ExecutiveInput, OverrunPolicy, RENAMED_TASKS, TaskInput};
 use serde::Deserialize;
 use std::string::{String, ToString};
 use std::vec::Vec;
@@ -12,6 +12,10 @@ use std::vec::Vec;
 pub struct ScheduleFile {
     pub executive: ExecutiveSection,
     pub tasks: Vec<TaskEntry>,
+    /// One line per old task name this file used and [`ScheduleFile::parse`] renamed (see
+    /// [`RENAMED_TASKS`]), for the reader to print as a warning.
+    #[serde(skip)]
+    pub renamed: Vec<String>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -51,7 +55,8 @@ pub const MAX_BUDGET_US: u64 = 10_000_000;
 impl ScheduleFile {
     /// Parses the text of a schedule file; the error says the line and column.
     pub fn parse(text: &str) -> Result<Self, String> {
-        let file: Self = toml::from_str(text).map_err(|e| toml_error_line(&e, text))?;
+        let mut file: Self = toml::from_str(text).map_err(|e| toml_error_line(&e, text))?;
+        file.rename_old_tasks();
         let e = &file.executive;
         for (key, value, max) in [
             ("margin_us", e.margin_us, MAX_BUDGET_US),
@@ -93,6 +98,33 @@ impl ScheduleFile {
             }
         }
         Ok(file)
+    }
+
+    /// A file written before [`RENAMED_TASKS`] names `logging` and no `watchdog`: in it, and
+    /// only in it, `health` is the watchdog. Every name and `after` entry is renamed at once,
+    /// so `logging` → `health` and `health` → `watchdog` do not run into each other.
+    fn rename_old_tasks(&mut self) {
+        let names_old = |old: &str| self.tasks.iter().any(|t| t.name == old);
+        if !names_old("logging") || names_old("watchdog") {
+            return;
+        }
+        let rename = |name: &mut String| {
+            if let Some((_, new)) = RENAMED_TASKS.iter().find(|(old, _)| name == old) {
+                *name = new.to_string();
+            }
+        };
+        for t in &mut self.tasks {
+            let old = t.name.clone();
+            rename(&mut t.name);
+            if t.name != old {
+                self.renamed.push(std::format!(
+                    "task `{old}` is now called `{}`: rename it (the old names are read until \
+                     the release after next)",
+                    t.name
+                ));
+            }
+            t.after.iter_mut().for_each(rename);
+        }
     }
 
     pub fn executive_input(&self) -> ExecutiveInput {

@@ -14,8 +14,8 @@ const TASK_NAMES: &[&str] = &[
     "estimator",
     "control",
     "telemetry",
-    "logging",
     "health",
+    "watchdog",
 ];
 
 const MS: u64 = 1_000_000;

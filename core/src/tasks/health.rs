@@ -1,169 +1,106 @@
-//! The health task: the software watchdog.
-//!
-//! The seed's watchdog cancelled threads that had not set their "alive" flag since its last
-//! check. Here nothing can be stuck inside a step (the executive measures every step and
-//! applies overrun policies), so the watchdog's job is to notice tasks that were *released*
-//! since the last check but never *completed* a step: init failing over and over, every
-//! release skipped, every step faulting. It counts those as misses, keeps the alive light for
-//! telemetry, and publishes a report into a latest-value slot.
+//! The health task: a health snapshot of every task, once a second, into `health.bin`
+//! (`docs/log-streams.md`), so a flight's log shows when a task started overrunning or
+//! resetting, not just the totals at the end.
 
-use crate::comm::LatestSlot;
+use super::task_log::TaskLog;
 use crate::executive::{Task, TaskContext, TaskFault};
-use crate::logfmt::{NoLog, RecordSink};
-use crate::schedule::analysis::MAX_TASKS;
-use crate::tasks::task_log::TaskLog;
+use crate::logfmt::RecordSink;
 
+pub const HEALTH_FORMAT_INDEX: u8 = 1;
 crate::log_record! {
-    /// Each watchdog check: which tasks are alive and which stalled, as bit masks.
-    pub struct WatchdogLog {
-        checks: u32 = "%u",
-        alive_mask: u32 = "%u",
-        stalled_mask: u32 = "%u",
-        misses_total: u32 = "%u",
-        period_ms: u32 = "%u",
+    /// One task's health snapshot, each task once a second.
+    pub struct TaskHealthLog {
+        task: u8 = "%hhu",
+        initialised: bool = "%hhu",
+        running: bool = "%hhu",
+        in_frame: bool = "%hhu",
+        alive: bool = "%hhu",
+        releases: u64 = "%llu",
+        overruns_budget: u32 = "%u",
+        overruns_frame: u32 = "%u",
+        overruns_missed: u32 = "%u",
+        skipped: u32 = "%u",
+        resets: u32 = "%u",
+        faults: u32 = "%u",
+        exec_mean_us: f32 = "%.1f",
+        exec_max_us: f32 = "%.1f",
+        log_dropped: u32 = "%u",
+        degraded: bool = "%hhu",
     }
 }
-const WATCHDOG_INDEX: u8 = 1;
 
-/// What the watchdog saw at its last check.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct WatchdogReport {
-    /// When the check ran (executive clock, ns).
-    pub checked_at_ns: u64,
-    /// Checks done so far.
-    pub checks: u32,
-    /// Tasks that completed a step since the previous check (bit per table index).
-    pub alive: u32,
-    /// Tasks released since the previous check that never completed a step.
-    pub stalled: u32,
-    /// Per task: checks at which it was released but never completed a step.
-    pub misses: [u32; MAX_TASKS],
-}
-
-pub struct HealthTask<'a, S: RecordSink = NoLog> {
-    report: WatchdogReport,
+pub struct HealthTask<S: RecordSink> {
     log: TaskLog<S>,
-    /// The log is declared once, by the first init (a reset does not restart it).
-    declared: bool,
-    /// Release counts at the previous check.
-    releases_seen: [u64; MAX_TASKS],
-    out: &'a LatestSlot<WatchdogReport>,
-    /// Minimum time between checks (ms), changeable over the link; 0: every release.
-    period_ms: Option<&'a core::cell::Cell<u32>>,
-    last_check_ns: Option<u64>,
+    interval_ns: u64,
+    next_snapshot_ns: u64,
 }
 
-impl<'a> HealthTask<'a, NoLog> {
-    pub fn new(out: &'a LatestSlot<WatchdogReport>) -> Self {
+impl<S: RecordSink> HealthTask<S> {
+    /// Snapshots every `interval_ns` (1 s in flight).
+    pub fn new(sink: S, interval_ns: u64) -> Self {
         Self {
-            report: WatchdogReport::default(),
-            log: TaskLog::new(NoLog),
-            declared: false,
-            releases_seen: [0; MAX_TASKS],
-            out,
-            period_ms: None,
-            last_check_ns: None,
-        }
-    }
-
-    /// Logs every check into `sink` (`watchdog.bin`).
-    pub fn logging_to<S: RecordSink>(self, sink: S) -> HealthTask<'a, S> {
-        HealthTask {
-            report: self.report,
             log: TaskLog::new(sink),
-            declared: self.declared,
-            releases_seen: self.releases_seen,
-            out: self.out,
-            period_ms: self.period_ms,
-            last_check_ns: self.last_check_ns,
+            interval_ns: interval_ns.max(1),
+            next_snapshot_ns: 0,
+        }
+    }
+
+    fn snapshot(&mut self, cx: &TaskContext<'_>) {
+        let health = cx.health;
+        for index in 0..health.task_count() {
+            let Some(h) = health.task(index) else {
+                continue;
+            };
+            let alive = health.alive(index);
+            let dropped = health.log_dropped(index);
+            let degraded = health.degraded(index).is_some();
+            let record = TaskHealthLog {
+                task: index as u8,
+                initialised: h.initialised,
+                running: h.running,
+                in_frame: h.in_frame,
+                alive,
+                releases: h.releases,
+                overruns_budget: h.overruns.budget,
+                overruns_frame: h.overruns.frame,
+                overruns_missed: h.overruns.missed,
+                skipped: h.skipped,
+                resets: h.resets,
+                faults: h.faults,
+                exec_mean_us: h.exec.mean_ns() as f32 / 1e3,
+                exec_max_us: h.exec.max_ns as f32 / 1e3,
+                log_dropped: dropped,
+                degraded,
+            };
+            self.log.log(cx, HEALTH_FORMAT_INDEX, &record);
         }
     }
 }
 
-impl<'a, S: RecordSink> HealthTask<'a, S> {
-    /// Checks at most every `period_ms` (the ground's "health-check period"); the task still
-    /// runs at its frame-table period.
-    pub fn with_period(mut self, period_ms: &'a core::cell::Cell<u32>) -> Self {
-        self.period_ms = Some(period_ms);
-        self
-    }
-
-    pub fn report(&self) -> &WatchdogReport {
-        &self.report
-    }
-}
-
-impl<S: RecordSink> Task for HealthTask<'_, S> {
+impl<S: RecordSink> Task for HealthTask<S> {
     fn init(&mut self, cx: &mut TaskContext<'_>) -> Result<(), TaskFault> {
-        if !self.declared {
-            self.log
-                .declare::<WatchdogLog>(cx, WATCHDOG_INDEX)
-                .map_err(|_| TaskFault::new("watchdog log format"))?;
-            self.declared = true;
-            self.log.begin(cx);
-        }
-        // Start counting from now: releases before (re)initialisation are not held against
-        // anyone.
-        for (index, seen) in self.releases_seen.iter_mut().enumerate() {
-            *seen = cx.health.task(index).map_or(0, |h| h.releases);
-        }
+        self.log
+            .declare::<TaskHealthLog>(cx, HEALTH_FORMAT_INDEX)
+            .map_err(|_| TaskFault::new("health log format"))?;
+        self.log.begin(cx);
+        self.next_snapshot_ns = cx.now_ns;
         Ok(())
     }
 
     fn step(&mut self, cx: &mut TaskContext<'_>) -> Result<(), TaskFault> {
-        let period_ns = u64::from(self.period_ms.map_or(0, core::cell::Cell::get)) * 1_000_000;
-        if let Some(last) = self.last_check_ns
-            && cx.now_ns < last.saturating_add(period_ns)
-        {
-            return Ok(());
+        if cx.now_ns >= self.next_snapshot_ns {
+            self.snapshot(cx);
+            // Keep the 1 s grid even if a release came late; never schedule in the past.
+            self.next_snapshot_ns = self
+                .next_snapshot_ns
+                .saturating_add(self.interval_ns)
+                .max(cx.now_ns.saturating_add(1));
         }
-        self.last_check_ns = Some(cx.now_ns);
-        let health = cx.health;
-        let mut alive = 0u32;
-        let mut stalled = 0u32;
-        for (index, seen) in self
-            .releases_seen
-            .iter_mut()
-            .enumerate()
-            .take(health.task_count())
-        {
-            let bit = 1u32 << index;
-            let was_alive = health.take_alive(index);
-            let releases = health.task(index).map_or(0, |h| h.releases);
-            if index == cx.task {
-                // The watchdog is running, so it is alive; its own step completes after this.
-                alive |= bit;
-            } else if was_alive {
-                alive |= bit;
-            } else if releases > *seen {
-                stalled |= bit;
-                if let Some(m) = self.report.misses.get_mut(index) {
-                    *m = m.saturating_add(1);
-                }
-            }
-            *seen = releases;
-        }
-        self.report.checked_at_ns = cx.now_ns;
-        self.report.checks = self.report.checks.saturating_add(1);
-        self.report.alive = alive;
-        self.report.stalled = stalled;
-        self.out.publish(self.report);
-        let r = self.report;
-        let misses_total = r.misses.iter().fold(0u32, |sum, m| sum.saturating_add(*m));
-        let period_ms = u32::try_from(period_ns / 1_000_000).unwrap_or(u32::MAX);
-        let record = WatchdogLog {
-            checks: r.checks,
-            alive_mask: r.alive,
-            stalled_mask: r.stalled,
-            misses_total,
-            period_ms,
-        };
-        self.log.log(cx, WATCHDOG_INDEX, &record);
         Ok(())
     }
 
     fn shutdown(&mut self, cx: &mut TaskContext<'_>) {
+        self.snapshot(cx);
         self.log.end(cx);
     }
 }
@@ -172,26 +109,30 @@ impl<S: RecordSink> Task for HealthTask<'_, S> {
 mod tests {
     use super::*;
     use crate::executive::Executive;
+    use crate::logfmt::reader::{Event, LogReader, Record, read_slice};
     use crate::schedule::{FrameTable, OverrunPolicy, TaskSlot};
-    use crate::tasks::test_support::{MS, SetClock, run_frames};
+    use crate::tasks::test_support::{Idle, MS, SetClock, run_frames};
     use core::cell::Cell;
+    use std::vec::Vec;
 
-    /// Completes its steps only while `healthy` is set; otherwise its step fails.
-    struct Flaky<'a>(&'a Cell<bool>);
-    impl Task for Flaky<'_> {
-        fn init(&mut self, _: &mut TaskContext<'_>) -> Result<(), TaskFault> {
-            Ok(())
-        }
-        fn step(&mut self, _: &mut TaskContext<'_>) -> Result<(), TaskFault> {
-            if self.0.get() {
-                Ok(())
-            } else {
-                Err(TaskFault::new("sensor silent"))
+    /// A ring with room for `capacity` records, keeping what it takes.
+    struct Ring {
+        bytes: Vec<u8>,
+        records: usize,
+        capacity: usize,
+    }
+    impl RecordSink for &mut Ring {
+        fn push_record(&mut self, record: &[u8]) -> bool {
+            if self.records == self.capacity {
+                return false;
             }
+            self.records += 1;
+            self.bytes.extend_from_slice(record);
+            true
         }
     }
 
-    static SLOTS: [TaskSlot; 3] = [
+    static SLOTS: [TaskSlot; 2] = [
         TaskSlot {
             name: "imu",
             period_ns: 10 * MS,
@@ -200,16 +141,9 @@ mod tests {
             on_overrun: OverrunPolicy::Log,
         },
         TaskSlot {
-            name: "gps",
-            period_ns: 100 * MS,
-            offset_ns: 20 * MS,
-            budget_ns: MS,
-            on_overrun: OverrunPolicy::Log,
-        },
-        TaskSlot {
             name: "health",
-            period_ns: 50 * MS,
-            offset_ns: 40 * MS,
+            period_ns: 100 * MS,
+            offset_ns: 0,
             budget_ns: MS,
             on_overrun: OverrunPolicy::Log,
         },
@@ -219,43 +153,75 @@ mod tests {
         margin_ns: MS,
         late_start_ns: MS,
         tasks: &SLOTS,
-        // imu every frame; gps in frame 2; health in frames 4 and 9.
-        frames: &[
-            0b001, 0b001, 0b011, 0b001, 0b101, 0b001, 0b001, 0b001, 0b001, 0b101,
-        ],
+        frames: &[0b11, 0b01, 0b01, 0b01, 0b01, 0b01, 0b01, 0b01, 0b01, 0b01],
         utilisation_ppm: 0,
     };
 
-    #[test]
-    fn watchdog_counts_released_tasks_that_never_complete_and_ignores_ones_not_released() {
+    fn fly(ring: &mut Ring, seconds: u64) -> (u32, u64) {
         let clock = SetClock(Cell::new(0));
-        let imu_ok = Cell::new(true);
-        let gps_ok = Cell::new(true);
-        let slot = LatestSlot::new();
-        let mut imu = Flaky(&imu_ok);
-        let mut gps = Flaky(&gps_ok);
-        let mut health = HealthTask::new(&slot);
+        let mut imu = Idle;
+        let mut health = HealthTask::new(ring, 1000 * MS);
         let mut exec = Executive::new(&TABLE, &clock);
-        {
-            let mut tasks: [&mut dyn Task; 3] = [&mut imu, &mut gps, &mut health];
-            exec.start(&mut tasks, 0).expect("start");
-            let mut run = |frames: u64| run_frames(&mut exec, &clock, &mut tasks, frames);
-            run(5); // frames 0-4: check at frame 4, all fine (gps ran in frame 2)
-            let r = slot.peek().expect("report");
-            assert_eq!((r.checks, r.alive, r.stalled), (1, 0b111, 0));
-            run(5); // frames 5-9: gps not released since the last check: not a miss
-            let r = slot.peek().expect("report");
-            assert_eq!((r.checks, r.alive, r.stalled), (2, 0b101, 0));
-            imu_ok.set(false);
-            gps_ok.set(false);
-            run(5); // frames 10-14: imu and gps (frame 12) fail every step
-            let r = slot.peek().expect("report");
-            assert_eq!((r.alive, r.stalled), (0b100, 0b011));
-            imu_ok.set(true);
-            run(5);
-            let r = slot.peek().expect("report");
-            assert_eq!((r.alive, r.stalled), (0b101, 0));
-            assert_eq!(r.misses[..3], [1, 1, 0]);
-        }
+        exec.set_log_time_origin(1_000_000_000_000);
+        let mut tasks: [&mut dyn Task; 2] = [&mut imu, &mut health];
+        exec.start(&mut tasks, 0).expect("start");
+        run_frames(&mut exec, &clock, &mut tasks, seconds * 100);
+        exec.shutdown(&mut tasks);
+        (
+            exec.health().log_dropped(1),
+            exec.health().task(0).map_or(0, |h| h.releases),
+        )
+    }
+
+    #[test]
+    fn snapshots_every_task_each_second_readable_by_the_reader() {
+        let mut ring = Ring {
+            bytes: Vec::new(),
+            records: 0,
+            capacity: usize::MAX,
+        };
+        let (dropped, _) = fly(&mut ring, 3);
+        assert_eq!(dropped, 0);
+        let mut reader = LogReader::new();
+        let mut rows = Vec::new();
+        let mut problems = 0;
+        let mut begins = 0;
+        read_slice(&mut reader, &ring.bytes, |event| match event {
+            Event::Record {
+                record: Record::DataBlock { time, data, .. },
+                ..
+            } => rows.push((time.sec, data.to_vec())),
+            Event::Record {
+                record: Record::BeginData { time },
+                ..
+            } => {
+                begins += 1;
+                assert_eq!(time.sec, 1000);
+            }
+            Event::Problem(_) => problems += 1,
+            _ => {}
+        });
+        assert_eq!((problems, begins), (0, 1));
+        // Snapshots at 0, 1, 2 s and at shutdown: 4 × 2 tasks.
+        assert_eq!(rows.len(), 8);
+        assert_eq!(rows[2].0, 1001, "TIME = origin + executive clock");
+        assert_eq!(rows[2].1[0], 0, "first row of a snapshot is task 0");
+        // imu's releases at the 1 s snapshot: frames 0..=100 ran before the health task in frame 100.
+        let releases = u64::from_le_bytes(rows[2].1[5..13].try_into().expect("8 bytes"));
+        assert_eq!(releases, 101);
+    }
+
+    #[test]
+    fn a_full_ring_counts_every_dropped_record_in_health() {
+        let mut ring = Ring {
+            bytes: Vec::new(),
+            records: 0,
+            capacity: 4,
+        };
+        let (dropped, _) = fly(&mut ring, 2);
+        // Pushes: the declaration (definition and comment in one push), begin, 3 snapshots
+        // (0 s, 1 s, shutdown) of 2 rows, end = 9. The ring takes 4: 5 are counted.
+        assert_eq!(ring.records, 4);
+        assert_eq!(dropped, 5);
     }
 }

@@ -38,7 +38,7 @@ use crate::link::telemetry::{Due, TelemetrySchedule, VehicleEnvelopes};
 use crate::logfmt::RecordSink;
 use crate::schedule::FrameTable;
 use crate::schedule::analysis::MAX_TASKS;
-use crate::tasks::health::WatchdogReport;
+use crate::tasks::watchdog::WatchdogReport;
 use core::cell::{Cell, RefCell};
 use core::sync::atomic::{AtomicBool, Ordering};
 
@@ -459,7 +459,7 @@ impl<'a, P: DatagramPort, S: RecordSink> TelemetryTask<'a, P, S> {
             self.table
                 .tasks
                 .iter()
-                .find(|t| t.name == "health")
+                .find(|t| t.name == "watchdog")
                 .map_or(0, |t| {
                     u32::try_from(t.period_ns / 1_000_000).unwrap_or(u32::MAX)
                 })

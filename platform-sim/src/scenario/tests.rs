@@ -370,9 +370,9 @@ fn overrun_tasks_are_checked_against_the_schedule() {
         "control",
         "servo",
         "gps",
-        "logging",
-        "telemetry",
         "health",
+        "telemetry",
+        "watchdog",
     ];
     assert_eq!(f.check_tasks(&tasks), Ok(()));
     let e = f

@@ -48,9 +48,9 @@ pub const TASKS: [(&str, &[(u8, &str)]); 8] = [
         ],
     ),
     ("gps", &[(gps::FIX_INDEX, gps::GpsFixLog::FORMAT.columns)]),
-    ("logging", &[]),
-    ("telemetry", &[]),
     ("health", &[]),
+    ("telemetry", &[]),
+    ("watchdog", &[]),
 ];
 
 #[derive(Clone, Debug)]

@@ -32,11 +32,11 @@ fn append(out: &mut Vec<u8>, encode: impl FnOnce(&mut [u8]) -> usize) {
 /// - imu 3000 us (over its 300 us budget, reset) in frames 100..=104;
 /// - estimator 12000 us (over budget, into the next frame) in frame 700, so frame 701 starts
 ///   2500 us late;
-/// - logging skipped in frames 300..=309;
+/// - health skipped in frames 300..=309;
 /// - start latency 20 us, 50 us in frames 0..=9, 5000 us in frame 500 (after the missed
 ///   ones), 2500 us in frame 701; overhead 1 us per frame.
 fn synthetic_frames() -> Vec<FrameRecord> {
-    let (imu, estimator, logging) = (task("imu"), task("estimator"), task("logging"));
+    let (imu, estimator, health) = (task("imu"), task("estimator"), task("health"));
     let mut frames = Vec::new();
     for k in 0..1000u64 {
         if k == 498 || k == 499 {
@@ -66,9 +66,9 @@ fn synthetic_frames() -> Vec<FrameRecord> {
             f.flags |= flags::OVERRUN;
         }
         if (300..=309).contains(&k) {
-            f.ran &= !(1 << logging);
-            f.skipped |= 1 << logging;
-            f.exec_ns[logging] = 0;
+            f.ran &= !(1 << health);
+            f.skipped |= 1 << health;
+            f.exec_ns[health] = 0;
         }
         f.start_latency_ns = match k {
             0..=9 => 50_000,
@@ -200,10 +200,10 @@ fn synthetic_log_gives_the_known_figures() {
     assert_eq!(estimator["exec_ns"]["max"], 12_000_000);
     assert_eq!(estimator["slack_ns"], 1_500_000 - 12_000_000);
 
-    let logging = task_json(&r, "logging");
-    assert_eq!(logging["skipped"], 10);
-    assert_eq!(logging["ran"], 988);
-    assert_eq!(logging["releases"], 1000);
+    let health = task_json(&r, "health");
+    assert_eq!(health["skipped"], 10);
+    assert_eq!(health["ran"], 988);
+    assert_eq!(health["releases"], 1000);
 
     // control and servo: every 20 ms; 498 (missed) is one of theirs.
     let servo = task_json(&r, "servo");
@@ -248,7 +248,7 @@ fn synthetic_log_gives_the_known_figures() {
     assert_eq!(est["over_frame"], true);
 
     // IMU → servo: the 499 frames where both ran; worst is frame 700: 20 us + imu 100 +
-    // estimator 12000 + logging, control, servo 10 each + all of the 1 us overhead.
+    // estimator 12000 + health, control, servo 10 each + all of the 1 us overhead.
     let e2e = &r["end_to_end"]["latency_ns"];
     assert_eq!(e2e["count"], 499);
     assert_eq!(e2e["max"], 12_151_000);
