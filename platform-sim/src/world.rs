@@ -405,14 +405,7 @@ impl SimWorld {
         let fix = gps_fix(sample, self.faults.gps_loss);
         let mut buf = [0u8; 160];
         // POS last: the receiver is configured to end each epoch with it (core's `devices::gps::GpsConfig`).
-        for kind in [
-            SentenceKind::Gga,
-            SentenceKind::Rmc,
-            SentenceKind::Vtg,
-            SentenceKind::Gsa,
-            SentenceKind::Gst,
-            SentenceKind::AshtechPos,
-        ] {
+        for kind in SentenceKind::ALL {
             if let Some(n) = encode_sentence(kind, Talker::Gp, &fix, &mut buf) {
                 link.send_to_computer(Device::Gps, buf.get(..n).unwrap_or_default());
             }

@@ -167,15 +167,7 @@ pub fn run(megabytes: f64) -> ParserBench {
     let count = |n: f64| ((n * scale) as usize).max(200);
     let imu = imu_stream(count(240_000.0));
     let servo = servo_stream(count(170_000.0));
-    let all = [
-        SentenceKind::Gga,
-        SentenceKind::Rmc,
-        SentenceKind::Vtg,
-        SentenceKind::Gsa,
-        SentenceKind::Gst,
-        SentenceKind::AshtechPos,
-    ];
-    let gps_all = gps_stream(count(14_000.0), &all);
+    let gps_all = gps_stream(count(14_000.0), &SentenceKind::ALL);
     let gga_rmc = gps_stream(count(34_000.0), &[SentenceKind::Gga, SentenceKind::Rmc]);
 
     let imu_figures = best(&imu, |b| decode_all(ImuDecoder::new(u64::MAX), b));

@@ -46,6 +46,22 @@ impl<T> Sink<T> for RingSink<T> {
     }
 }
 
+/// Moves what is waiting in `ring`, up to `buf.len()` bytes, into the front of `buf`; returns
+/// how many (possibly 0). The bytes may wrap around the ring's end: both halves are copied.
+pub fn read_into(ring: &mut rtrb::Consumer<u8>, buf: &mut [u8]) -> usize {
+    let n = ring.slots().min(buf.len());
+    if let Ok(chunk) = ring.read_chunk(n) {
+        let (a, b) = chunk.as_slices();
+        let (head, tail) = buf.split_at_mut(a.len().min(n));
+        head.copy_from_slice(a);
+        if let Some(tail) = tail.get_mut(..b.len()) {
+            tail.copy_from_slice(b);
+        }
+        chunk.commit_all();
+    }
+    n
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -345,17 +345,7 @@ impl embedded_io::ReadReady for RingReader {
 impl embedded_io::Read for RingReader {
     /// Copies what is waiting (possibly nothing: call after `read_ready`).
     fn read(&mut self, buf: &mut [u8]) -> Result<usize, Self::Error> {
-        let n = self.0.slots().min(buf.len());
-        if let Ok(chunk) = self.0.read_chunk(n) {
-            let (a, b) = chunk.as_slices();
-            let (head, tail) = buf.split_at_mut(a.len().min(n));
-            head.copy_from_slice(a);
-            if let Some(tail) = tail.get_mut(..b.len()) {
-                tail.copy_from_slice(b);
-            }
-            chunk.commit_all();
-        }
-        Ok(n)
+        Ok(crate::ring::read_into(&mut self.0, buf))
     }
 }
 

@@ -103,17 +103,7 @@ impl DeviceLink for RingLink {
     }
 
     fn receive_from_computer(&mut self, buf: &mut [u8]) -> usize {
-        let n = self.commands.slots().min(buf.len());
-        if let Ok(chunk) = self.commands.read_chunk(n) {
-            let (a, b) = chunk.as_slices();
-            let (head, tail) = buf.split_at_mut(a.len().min(n));
-            head.copy_from_slice(a);
-            if let Some(tail) = tail.get_mut(..b.len()) {
-                tail.copy_from_slice(b);
-            }
-            chunk.commit_all();
-        }
-        n
+        crate::ring::read_into(&mut self.commands, buf)
     }
 }
 

@@ -4,8 +4,8 @@
 
 use skyframe_core::logfmt::csv::{write_byte_array_line, write_data_line, write_header};
 use skyframe_core::logfmt::format::{Format, trim_nuls};
-use skyframe_core::logfmt::printf::ByteWrite;
 use skyframe_core::logfmt::record::Time;
+use skyframe_logtable::CsvLine;
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
@@ -13,24 +13,6 @@ use std::path::{Path, PathBuf};
 use skyframe_core::logfmt::record::kind::{
     BYTE_ARRAY, BYTE_ARRAY_LEGACY, DATA_BLOCK, FORMAT_COMMENT, FORMAT_DEFINITION,
 };
-
-/// One line being rendered, as bytes (`%c` prints raw bytes, as C does).
-#[derive(Default)]
-struct Line(Vec<u8>);
-
-impl std::fmt::Write for Line {
-    fn write_str(&mut self, s: &str) -> std::fmt::Result {
-        self.0.extend_from_slice(s.as_bytes());
-        Ok(())
-    }
-}
-
-impl ByteWrite for Line {
-    fn write_byte(&mut self, byte: u8) -> std::fmt::Result {
-        self.0.push(byte);
-        Ok(())
-    }
-}
 
 /// One format index of a text stream and its CSV file.
 struct IndexFile {
@@ -49,7 +31,7 @@ struct IndexFile {
 pub struct TextStream {
     name: String,
     indices: Vec<IndexFile>,
-    line: Line,
+    line: CsvLine,
 }
 
 /// What became of a record.
@@ -65,7 +47,7 @@ impl TextStream {
         Self {
             name: name.to_string(),
             indices: Vec::new(),
-            line: Line::default(),
+            line: CsvLine::default(),
         }
     }
 

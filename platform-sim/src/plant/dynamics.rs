@@ -84,27 +84,21 @@ impl ControlInputs {
         throttle: f64,
         brake: f64,
     ) -> Self {
-        let surface = |x: f64| {
-            if x.is_finite() {
-                x.clamp(-1.0, 1.0)
-            } else {
-                0.0
-            }
-        };
-        let unit = |x: f64| {
-            if x.is_finite() {
-                x.clamp(0.0, 1.0)
-            } else {
-                0.0
-            }
-        };
+        let c = super::ActuatorCommands {
+            aileron,
+            elevator,
+            rudder,
+            throttle,
+            brake,
+        }
+        .sanitized();
         Self {
-            aileron_rad: surface(aileron) * p.max_aileron_rad,
-            elevator_rad: -surface(elevator) * p.max_elevator_rad,
-            rudder_rad: -surface(rudder) * p.max_rudder_rad,
-            throttle: unit(throttle),
-            brake: unit(brake),
-            steering_rad: surface(rudder) * p.ground.max_steering_rad,
+            aileron_rad: c.aileron * p.max_aileron_rad,
+            elevator_rad: -c.elevator * p.max_elevator_rad,
+            rudder_rad: -c.rudder * p.max_rudder_rad,
+            throttle: c.throttle,
+            brake: c.brake,
+            steering_rad: c.rudder * p.ground.max_steering_rad,
         }
     }
 }

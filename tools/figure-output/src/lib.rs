@@ -1,4 +1,4 @@
-//! What the tools' figures share: the embedded font and PNG output.
+//! What the tools' figures share: the embedded font, the series colours and PNG output.
 //!
 //! plotters draws text through fonts registered by family name; the tools register DejaVu
 //! Sans (compiled in) as [`FONT`] once, and draw bitmaps into RGB buffers that
@@ -9,10 +9,34 @@ use std::io::BufWriter;
 use std::path::Path;
 use std::sync::Once;
 
-use plotters::style::FontStyle;
+use plotters::style::{FontStyle, RGBColor};
 
 /// The font family every figure's text uses.
 pub const FONT: &str = "sans-serif";
+
+/// The colours of a figure's series, in order (the Tableau 10 set; blue and red first, so a
+/// panel of two reads as a pair).
+const SERIES_COLOURS: [RGBColor; 10] = [
+    RGBColor(31, 119, 180),
+    RGBColor(214, 39, 40),
+    RGBColor(44, 160, 44),
+    RGBColor(255, 127, 14),
+    RGBColor(148, 103, 189),
+    RGBColor(140, 86, 75),
+    RGBColor(227, 119, 194),
+    RGBColor(23, 190, 207),
+    RGBColor(188, 189, 34),
+    RGBColor(127, 127, 127),
+];
+
+/// The colour of series `i` (the set repeats after ten).
+pub fn series_colour(i: usize) -> RGBColor {
+    let [first, ..] = SERIES_COLOURS;
+    SERIES_COLOURS
+        .get(i % SERIES_COLOURS.len())
+        .copied()
+        .unwrap_or(first)
+}
 
 /// Registers the embedded DejaVu Sans as [`FONT`]; the first call does it, later calls are
 /// free.

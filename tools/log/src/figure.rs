@@ -79,17 +79,6 @@ const MAX_DRAWN_POINTS: usize = 8000;
 /// The same for point clouds (each point is a circle element in SVG).
 const MAX_DRAWN_MARKERS: usize = 3000;
 
-const COLOURS: [RGBColor; 8] = [
-    RGBColor(31, 119, 180),
-    RGBColor(214, 39, 40),
-    RGBColor(44, 160, 44),
-    RGBColor(255, 127, 14),
-    RGBColor(148, 103, 189),
-    RGBColor(140, 86, 75),
-    RGBColor(227, 119, 194),
-    RGBColor(23, 190, 207),
-];
-
 /// How many panels a figure of `size` draws: each at least [`MIN_PANEL_HEIGHT`] pixels high
 /// (minus the title's room).
 pub fn panels_that_fit(size: (u32, u32)) -> usize {
@@ -287,7 +276,7 @@ fn draw_panel<DB: DrawingBackend>(
         .draw()
         .map_err(err)?;
     for (i, series) in panel.series.iter().enumerate() {
-        let colour = COLOURS.get(i % COLOURS.len()).copied().unwrap_or(BLACK);
+        let colour = skyframe_figure_output::series_colour(i);
         // The legend entry first (an empty series), then the segments.
         let legend = chart
             .draw_series(LineSeries::new(std::iter::empty::<(f64, f64)>(), colour))

@@ -8,9 +8,10 @@ use std::path::{Path, PathBuf};
 
 use indicatif::ProgressBar;
 use skyframe_core::logfmt::{
-    ByteWrite, Event, Format, LogReader, Record, RenderError, write_byte_array_line,
-    write_data_line, write_header,
+    Event, Format, LogReader, Record, RenderError, write_byte_array_line, write_data_line,
+    write_header,
 };
+use skyframe_logtable::CsvLine;
 
 use crate::Outcome;
 use crate::input::{expand, problem_line, progress_bar, read_file, report_line};
@@ -97,31 +98,6 @@ fn convert(inputs: &[PathBuf], out_dir: Option<&Path>, progress: bool) -> Outcom
     outcome
 }
 
-/// A CSV line as bytes: `%c` prints raw bytes, exactly as C does, even when they are not
-/// UTF-8.
-#[derive(Default)]
-struct Line(Vec<u8>);
-
-impl std::fmt::Write for Line {
-    fn write_str(&mut self, s: &str) -> std::fmt::Result {
-        self.0.extend_from_slice(s.as_bytes());
-        Ok(())
-    }
-}
-
-impl ByteWrite for Line {
-    fn write_byte(&mut self, byte: u8) -> std::fmt::Result {
-        self.0.push(byte);
-        Ok(())
-    }
-
-    fn write_ascii(&mut self, ascii: &[u8]) -> std::fmt::Result {
-        // Bytes in, bytes out: the renderer's digits need no check that they are text.
-        self.0.extend_from_slice(ascii);
-        Ok(())
-    }
-}
-
 /// One open CSV and the header it last printed.
 struct CsvOut {
     writer: BufWriter<File>,
@@ -141,7 +117,7 @@ struct Converter<'a> {
     /// Bumped at every Format Definition or Comment of the index.
     versions: Vec<u64>,
     outputs: Vec<Option<CsvOut>>,
-    line: Line,
+    line: CsvLine,
     reported: bool,
     /// The first write error; writing stops there.
     error: Option<io::Error>,
@@ -158,7 +134,7 @@ impl<'a> Converter<'a> {
             comments: vec![None; INDEXES],
             versions: vec![0; INDEXES],
             outputs: (0..INDEXES).map(|_| None).collect(),
-            line: Line::default(),
+            line: CsvLine::default(),
             reported: false,
             error: None,
         }
@@ -214,7 +190,7 @@ impl<'a> Converter<'a> {
         offset: u64,
         index: u8,
         format: &Format,
-        render: impl FnOnce(&mut Line, &str, &Format) -> Result<(), RenderError>,
+        render: impl FnOnce(&mut CsvLine, &str, &Format) -> Result<(), RenderError>,
     ) {
         if self.error.is_some() {
             return;

@@ -2,22 +2,11 @@
 //! (not by the core's encoder), and checks its output byte for byte.
 
 use std::path::Path;
-use std::process::{Command, Output};
 
-fn skyframe_log(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_skyframe-log"))
-        .args(args)
-        .output()
-        .expect("the binary runs")
-}
-
-fn stderr(output: &Output) -> String {
-    String::from_utf8_lossy(&output.stderr).into_owned()
-}
-
+#[allow(dead_code)] // shared with ulog.rs and plot.rs: each test crate uses part of it
 mod common;
 
-use common::WHOLE;
+use common::{WHOLE, skyframe_log, stderr};
 
 const CSV_1: &str = "% format 1: %u,%hd,%.3f,%lf\n\
                      % time,count,delta,x_m,y_m\n\

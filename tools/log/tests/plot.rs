@@ -1,12 +1,14 @@
 //! `plot` on flights encoded with the core's encoders (docs/log-streams.md): the report's
 //! files, their image sizes and contents, its interval statistics, and `--series` errors.
 
+#[allow(dead_code)] // shared with cli.rs and ulog.rs: each test crate uses part of it
+mod common;
 #[allow(dead_code)] // shared with flight_ulog.rs: each test crate uses part of it
 mod flight;
 
 use std::path::Path;
-use std::process::{Command, Output};
 
+use common::{skyframe_log, stderr};
 use flight::{SECONDS, StreamFile, gps_times_ns, write_flight, write_gps};
 use skyframe_core::logfmt::{LogFormat, Value};
 
@@ -18,17 +20,6 @@ const FIGURES: [&str; 6] = [
     "imu_rates_vs_aileron",
     "battery",
 ];
-
-fn skyframe_log(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_skyframe-log"))
-        .args(args)
-        .output()
-        .expect("the binary runs")
-}
-
-fn stderr(output: &Output) -> String {
-    String::from_utf8_lossy(&output.stderr).into_owned()
-}
 
 fn s(path: &Path) -> &str {
     path.to_str().expect("utf-8 path")

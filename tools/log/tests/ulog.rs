@@ -1,6 +1,7 @@
 //! `to-ulog` checked with pyulog, PX4's own reader. Skipped (with a message saying so) only
 //! when pyulog is not installed: `pip install pyulog`.
 
+#[allow(dead_code)] // shared with cli.rs and plot.rs: each test crate uses part of it
 mod common;
 
 use std::process::Command;

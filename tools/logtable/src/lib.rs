@@ -267,6 +267,32 @@ pub fn load_stream(path: &Path, mut on_problem: impl FnMut(&Problem)) -> Result<
     Ok(stream)
 }
 
+/// A CSV line being rendered, as bytes: `%c` prints raw bytes, exactly as C does, even when
+/// they are not UTF-8. `to-csv` and the shell's text logs render into it with
+/// `skyframe_core::logfmt::csv`, so their lines are the same bytes.
+#[derive(Default)]
+pub struct CsvLine(pub Vec<u8>);
+
+impl std::fmt::Write for CsvLine {
+    fn write_str(&mut self, s: &str) -> std::fmt::Result {
+        self.0.extend_from_slice(s.as_bytes());
+        Ok(())
+    }
+}
+
+impl skyframe_core::logfmt::printf::ByteWrite for CsvLine {
+    fn write_byte(&mut self, byte: u8) -> std::fmt::Result {
+        self.0.push(byte);
+        Ok(())
+    }
+
+    fn write_ascii(&mut self, ascii: &[u8]) -> std::fmt::Result {
+        // Bytes in, bytes out: the renderer's digits need no check that they are text.
+        self.0.extend_from_slice(ascii);
+        Ok(())
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -16,19 +16,6 @@ use crate::report::{self, Report};
 
 const SIZE: (u32, u32) = (1000, 600);
 
-const PALETTE: [RGBColor; 10] = [
-    RGBColor(31, 119, 180),
-    RGBColor(255, 127, 14),
-    RGBColor(44, 160, 44),
-    RGBColor(148, 103, 189),
-    RGBColor(140, 86, 75),
-    RGBColor(227, 119, 194),
-    RGBColor(188, 189, 34),
-    RGBColor(23, 190, 207),
-    RGBColor(127, 127, 127),
-    RGBColor(214, 39, 40),
-];
-
 /// The name of the category drawn at integer position `at` of a category axis; nothing
 /// between categories (the mesh asks for labels there too).
 fn category_label(names: &[String], at: f64) -> String {
@@ -41,7 +28,7 @@ fn category_label(names: &[String], at: f64) -> String {
 }
 
 fn colour(i: usize) -> RGBColor {
-    PALETTE.get(i % PALETTE.len()).copied().unwrap_or(BLACK)
+    skyframe_figure_output::series_colour(i)
 }
 
 #[derive(Clone, Copy)]

@@ -56,6 +56,17 @@ pub enum SentenceKind {
 }
 
 impl SentenceKind {
+    /// Every kind, in the order a receiver configured as core's `GpsConfig` sends an epoch
+    /// (Ashtech POS last: it ends the epoch).
+    pub const ALL: [Self; 6] = [
+        Self::Gga,
+        Self::Rmc,
+        Self::Vtg,
+        Self::Gsa,
+        Self::Gst,
+        Self::AshtechPos,
+    ];
+
     const fn bit(self) -> u8 {
         match self {
             SentenceKind::Gga => 1 << 0,

@@ -1,4 +1,19 @@
-//! Test logs built by hand, byte by byte, from `log-format.md` (not by the core's encoder).
+//! Test logs built by hand, byte by byte, from `log-format.md` (not by the core's encoder),
+//! and the binary under test.
+
+use std::process::{Command, Output};
+
+/// `skyframe-log ARGS`, run to its end.
+pub fn skyframe_log(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_skyframe-log"))
+        .args(args)
+        .output()
+        .expect("the binary runs")
+}
+
+pub fn stderr(output: &Output) -> String {
+    String::from_utf8_lossy(&output.stderr).into_owned()
+}
 
 /// A log with the spec's example (format 1) and a byte array format (2) written with both
 /// type bytes, 0xBA and 0xDA. Offsets: BD 0, FD 12, FC 31, DB 54, FD 84, FC 95, BA 103,
