@@ -5,7 +5,7 @@
 //! run's report and logs.
 
 use serde_json::Value;
-use serialport::{SerialPort, TTYPort};
+use serialport::TTYPort;
 use skyframe_core::devices::gps::{GpsFix, SentenceKind, Talker, encode_sentence};
 use skyframe_core::devices::imu::{
     IMU_FRAME_LEN, ImuMeasurement, ImuStatus, SlowSlot, encode_imu_frame,
@@ -13,42 +13,17 @@ use skyframe_core::devices::imu::{
 use skyframe_core::devices::servo::{
     BoardStatus, PILOT_FRAME_LEN, PilotReport, ServoCommandDecoder, encode_pilot_frame,
 };
-use skyframe_tests::{scratch, skyframe, to_csv};
+use skyframe_tests::pty::{self, point};
+use skyframe_tests::{on_the_clock, scratch, skyframe, to_csv};
 use std::io::{Read, Write};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 /// A pty whose slave `skyframe` opens by path; the test holds the master (the device).
 fn device() -> (TTYPort, PathBuf) {
-    let (mut master, slave) = TTYPort::pair().expect("pty pair");
-    // The master must not leak into the `skyframe` child: an inherited copy would keep the
-    // "device" plugged in after the test drops its own.
-    {
-        use std::os::fd::{AsRawFd, BorrowedFd};
-        // SAFETY: the fd belongs to `master`, which outlives this borrow.
-        #[allow(unsafe_code)]
-        let fd = unsafe { BorrowedFd::borrow_raw(master.as_raw_fd()) };
-        nix::fcntl::fcntl(
-            fd,
-            nix::fcntl::FcntlArg::F_SETFD(nix::fcntl::FdFlag::FD_CLOEXEC),
-        )
-        .expect("close-on-exec");
-    }
-    master
-        .set_timeout(Duration::from_millis(5))
-        .expect("timeout");
-    let path = PathBuf::from(slave.name().expect("slave name"));
-    drop(slave);
-    (master, path)
-}
-
-fn point(link: &Path, target: &Path) {
-    let tmp = link.with_extension("new");
-    let _ = std::fs::remove_file(&tmp);
-    std::os::unix::fs::symlink(target, &tmp).expect("symlink");
-    std::fs::rename(&tmp, link).expect("rename");
+    pty::device(Duration::from_millis(5))
 }
 
 fn imu_frame(counter: u8) -> [u8; IMU_FRAME_LEN] {
@@ -147,17 +122,9 @@ fn run_flies_three_pty_devices_through_unplug_and_silence() {
     )
     .expect("vehicle file");
 
-    let child = skyframe()
-        .args(["run", "--vehicle"])
+    let child = on_the_clock("run", "3.5")
+        .arg("--vehicle")
         .arg(&vehicle)
-        .args([
-            "--duration",
-            "3.5",
-            "--json",
-            "--priority",
-            "0",
-            "--no-mlockall",
-        ])
         .stdout(std::process::Stdio::piped())
         .spawn()
         .expect("skyframe runs");

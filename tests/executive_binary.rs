@@ -4,7 +4,7 @@
 use nix::sys::signal::{Signal, kill};
 use nix::unistd::Pid;
 use serde_json::Value;
-use skyframe_tests::{scratch, skyframe, workspace};
+use skyframe_tests::{on_the_clock, run_ok, scratch, skyframe, spawn_piped, workspace};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
@@ -15,33 +15,19 @@ fn sim(test: &str) -> Command {
     cmd
 }
 
-/// `skyframe idle --json` for `seconds` without real-time settings (tests run beside other
-/// tests), plus `extra` arguments; the run must succeed.
+/// `skyframe idle --json` for `seconds` on the clock into a scratch directory, plus `extra`
+/// arguments; the run must succeed.
 fn sim_json(test: &str, seconds: &str, extra: &[&str]) -> Value {
-    let out = sim(test)
-        .args([
-            "--duration",
-            seconds,
-            "--json",
-            "--priority",
-            "0",
-            "--no-mlockall",
-        ])
-        .args(extra)
-        .output()
-        .expect("runs");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    let out = run_ok(
+        on_the_clock("idle", seconds)
+            .arg("--log-dir")
+            .arg(scratch(test))
+            .args(extra),
     );
     json(&out.stdout)
 }
 
-fn json(stdout: &[u8]) -> Value {
-    serde_json::from_slice(stdout)
-        .unwrap_or_else(|e| panic!("not JSON ({e}): {}", String::from_utf8_lossy(stdout)))
-}
+use skyframe_tests::json_of as json;
 
 fn task<'a>(summary: &'a Value, name: &str) -> &'a Value {
     summary["tasks"]
@@ -260,19 +246,11 @@ fn a_long_stall_misses_whole_frames_and_counts_their_releases() {
 }
 
 fn stops_cleanly_on(signal: Signal) {
-    let child = sim("stops_cleanly_on")
-        .args([
-            "--duration",
-            "60",
-            "--json",
-            "--priority",
-            "0",
-            "--no-mlockall",
-        ])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("spawns");
+    let child = spawn_piped(
+        on_the_clock("idle", "60")
+            .arg("--log-dir")
+            .arg(scratch("stops_cleanly_on")),
+    );
     std::thread::sleep(Duration::from_millis(700));
     let sent = Instant::now();
     kill(Pid::from_raw(child.id() as i32), signal).expect("signal");
@@ -426,15 +404,7 @@ fn programmed_duration_ends_the_run() {
 
 #[test]
 fn bench_prints_both_latency_distributions_overhead_and_ratios() {
-    let out = skyframe()
-        .args(["bench", "--seconds", "0.5", "--json"])
-        .output()
-        .expect("runs");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let out = run_ok(skyframe().args(["bench", "--seconds", "0.5", "--json"]));
     let b = json(&out.stdout);
     for key in ["p50", "p99", "p999", "max"] {
         assert!(b["executive"]["wakeup_latency_us"][key].is_number(), "{b}");
@@ -515,17 +485,8 @@ fn bench_compares_against_cyclictest_in_the_same_run() {
 #[test]
 fn a_run_logs_its_timing_records_readably_for_skyframe_log() {
     let dir = scratch("timing-log");
-    let out = skyframe()
-        .args([
-            "idle",
-            "--duration",
-            "0.5",
-            "--json",
-            "--priority",
-            "0",
-            "--no-mlockall",
-            "--log-dir",
-        ])
+    let out = on_the_clock("idle", "0.5")
+        .args(["--log-dir"])
         .arg(&dir)
         .output()
         .expect("runs");
@@ -595,15 +556,7 @@ fn a_run_logs_its_timing_records_readably_for_skyframe_log() {
 
 #[test]
 fn bench_parsers_measures_each_decoder_and_the_nmea_crate_on_the_same_bytes() {
-    let out = skyframe()
-        .args(["bench", "parsers", "--json", "--megabytes", "0.05"])
-        .output()
-        .expect("runs");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let out = run_ok(skyframe().args(["bench", "parsers", "--json", "--megabytes", "0.05"]));
     let b = json(&out.stdout);
     for decoder in ["imu", "servo", "gps_all_sentences"] {
         assert!(b[decoder]["mb_per_s"].as_f64().unwrap_or(0.0) > 0.0, "{b}");

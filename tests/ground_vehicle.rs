@@ -5,7 +5,7 @@
 
 use serde_json::Value;
 use skyframe_logtable::load_stream;
-use skyframe_tests::{binary, scratch, skyframe, to_csv};
+use skyframe_tests::{binary, finish_ok, on_the_clock, scratch, skyframe, spawn_piped, to_csv};
 use std::net::UdpSocket;
 use std::os::unix::fs::PermissionsExt;
 use std::path::Path;
@@ -56,24 +56,13 @@ fn ground_and_vehicle_find_each_other_and_the_key_decides_who_stops_the_run() {
         .stdout(Stdio::piped())
         .spawn()
         .expect("monitor");
-    let vehicle = skyframe()
-        .args([
-            "sim",
-            "--duration",
-            "60",
-            "--json",
-            "--priority",
-            "0",
-            "--no-mlockall",
-        ])
-        .args(["--commands", "127.0.0.1:0", "--telemetry", &listen, "--key"])
-        .arg(&key)
-        .arg("--log-dir")
-        .arg(dir.join("flights"))
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("skyframe sim");
+    let vehicle = spawn_piped(
+        on_the_clock("sim", "60")
+            .args(["--commands", "127.0.0.1:0", "--telemetry", &listen, "--key"])
+            .arg(&key)
+            .arg("--log-dir")
+            .arg(dir.join("flights")),
+    );
     let seen = messages(&monitor.wait_with_output().expect("monitor ends"));
     let statuses: std::collections::BTreeSet<String> = seen
         .iter()
@@ -152,12 +141,7 @@ fn ground_and_vehicle_find_each_other_and_the_key_decides_who_stops_the_run() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let run = vehicle.wait_with_output().expect("vehicle ends");
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
+    let run = finish_ok(vehicle);
     let report: Value = serde_json::from_slice(&run.stdout).expect("report");
     assert_eq!(report["stop_reason"], "requested");
     assert!(

@@ -4,7 +4,9 @@
 //! solution — these frames are synthetic and not of this flight).
 
 use serde_json::Value;
-use skyframe_tests::{binary, scratch, skyframe, to_csv};
+use skyframe_tests::{
+    binary, finish_ok, on_the_clock, run_ok, scratch, skyframe, spawn_piped, to_csv,
+};
 use std::net::UdpSocket;
 use std::os::unix::fs::PermissionsExt;
 use std::process::{Command, Stdio};
@@ -18,17 +20,13 @@ fn free_port() -> String {
 fn horizon_results_reach_the_estimator_with_their_capture_time() {
     let dir = scratch("horizon-vehicle");
     let frames = dir.join("frames");
-    let synth = Command::new(binary("skyframe-horizon", "skyframe-horizon"))
-        .args([
-            "synth", "--frames", "20", "--width", "320", "--height", "240", "--seed", "3", "--out",
-        ])
-        .arg(&frames)
-        .output()
-        .expect("synth");
-    assert!(
-        synth.status.success(),
-        "{}",
-        String::from_utf8_lossy(&synth.stderr)
+    run_ok(
+        Command::new(binary("skyframe-horizon", "skyframe-horizon"))
+            .args([
+                "synth", "--frames", "20", "--width", "320", "--height", "240", "--seed", "3",
+                "--out",
+            ])
+            .arg(&frames),
     );
     let key = dir.join("link.key");
     std::fs::write(&key, format!("{}\n", "3c".repeat(32))).expect("key");
@@ -37,40 +35,24 @@ fn horizon_results_reach_the_estimator_with_their_capture_time() {
 
     // Parked: the filter aligns in 10 s at rest, then takes horizon updates.
     let scenario = skyframe_tests::workspace().join("tests/scenarios/parked.toml");
-    let vehicle = skyframe()
-        .args([
-            "sim",
-            "--duration",
-            "16",
-            "--json",
-            "--priority",
-            "0",
-            "--no-mlockall",
-        ])
-        .arg("--scenario")
-        .arg(&scenario)
-        .args(["--commands", &commands, "--telemetry", &telemetry, "--key"])
-        .arg(&key)
-        .arg("--log-dir")
-        .arg(dir.join("flights"))
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("skyframe sim");
+    let vehicle = spawn_piped(
+        on_the_clock("sim", "16")
+            .arg("--scenario")
+            .arg(&scenario)
+            .args(["--commands", &commands, "--telemetry", &telemetry, "--key"])
+            .arg(&key)
+            .arg("--log-dir")
+            .arg(dir.join("flights")),
+    );
     std::thread::sleep(std::time::Duration::from_secs(12));
-    let detect = Command::new(binary("skyframe-horizon", "skyframe-horizon"))
-        .arg("detect")
-        .arg(&frames)
-        .arg("--camera")
-        .arg(frames.join("camera.toml"))
-        .args(["--send", &commands, "--listen", &telemetry, "--key"])
-        .arg(&key)
-        .output()
-        .expect("detect");
-    assert!(
-        detect.status.success(),
-        "{}",
-        String::from_utf8_lossy(&detect.stderr)
+    let detect = run_ok(
+        Command::new(binary("skyframe-horizon", "skyframe-horizon"))
+            .arg("detect")
+            .arg(&frames)
+            .arg("--camera")
+            .arg(frames.join("camera.toml"))
+            .args(["--send", &commands, "--listen", &telemetry, "--key"])
+            .arg(&key),
     );
     let detected = String::from_utf8_lossy(&detect.stdout)
         .lines()
@@ -78,12 +60,7 @@ fn horizon_results_reach_the_estimator_with_their_capture_time() {
         .count();
     assert!(detected >= 15, "{detected} horizons found");
 
-    let out = vehicle.wait_with_output().expect("vehicle ends");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let out = finish_ok(vehicle);
     let report: Value = serde_json::from_slice(&out.stdout).expect("report");
     let accepted = report["link"]["commands_accepted"].as_u64().unwrap_or(0);
     assert!(

@@ -3,7 +3,7 @@
 //! stop request ends a run within a second even while a task is stuck in its step. Each
 //! test runs the real binary and checks the exit code and the one line it says.
 
-use skyframe_tests::{scratch, skyframe};
+use skyframe_tests::{scratch, skyframe, spawn_piped};
 use std::process::{Output, Stdio};
 use std::time::{Duration, Instant};
 
@@ -260,23 +260,21 @@ fn a_full_disk_suspends_logging_which_resumes_when_space_returns() {
         "{text}"
     );
 
-    let child = skyframe()
-        .args([
-            "sim",
-            "--duration",
-            "9",
-            "--priority",
-            "0",
-            "--no-mlockall",
-            "--no-link",
-            "--json",
-        ])
-        .arg("--log-dir")
-        .arg(mount.join("flights"))
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("skyframe sim");
+    let child = spawn_piped(
+        skyframe()
+            .args([
+                "sim",
+                "--duration",
+                "9",
+                "--priority",
+                "0",
+                "--no-mlockall",
+                "--no-link",
+                "--json",
+            ])
+            .arg("--log-dir")
+            .arg(mount.join("flights")),
+    );
     // About 44 kB/s: the last 100 kB are gone in 2-3 s.
     std::thread::sleep(Duration::from_secs(4));
     std::fs::remove_file(&ballast).expect("delete the ballast");

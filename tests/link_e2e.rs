@@ -9,7 +9,7 @@ use skyframe_core::link::messages::{
 };
 use skyframe_core::schedule::SHIPPED;
 use skyframe_logtable::{load_stream, time_ns};
-use skyframe_tests::{scratch, skyframe, to_csv};
+use skyframe_tests::{finish_ok, scratch, skyframe, spawn_piped, to_csv};
 use std::collections::BTreeMap;
 use std::net::{SocketAddr, UdpSocket};
 use std::os::unix::fs::PermissionsExt;
@@ -124,11 +124,11 @@ fn telemetry_commands_rates_and_a_clean_authenticated_stop() {
     let wrong = LinkKey::new([0x5b; 32]);
     let (mut ground, telemetry) = Ground::listening();
 
-    let child = sim_on_link(&dir, telemetry, &["--duration", "60", "--json"])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("skyframe sim");
+    let child = spawn_piped(sim_on_link(
+        &dir,
+        telemetry,
+        &["--duration", "60", "--json"],
+    ));
 
     // Every task's status within 3 s of the first datagram.
     let mut statuses = std::collections::BTreeSet::new();
@@ -191,12 +191,7 @@ fn telemetry_commands_rates_and_a_clean_authenticated_stop() {
 
     // The right key ends the run cleanly.
     ground.send(Command::Stop, &key);
-    let out = child.wait_with_output().expect("exits");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let out = finish_ok(child);
     let report: Value = serde_json::from_slice(&out.stdout).expect("JSON report");
     assert_eq!(report["stop_reason"], "requested");
     assert!(report["elapsed_s"].as_f64().unwrap_or(99.0) < 30.0);
@@ -336,11 +331,7 @@ fn every_task_sends_its_logged_values_and_they_equal_the_log() {
     let dir = scratch("link-values");
     write_key(&dir.join("link.key"), 0x5d);
     let (mut socket, telemetry) = ground_socket();
-    let child = sim_on_link(&dir, telemetry, &["--duration", "8", "--json"])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("skyframe sim");
+    let child = spawn_piped(sim_on_link(&dir, telemetry, &["--duration", "8", "--json"]));
     let mut data: Vec<TaskData> = Vec::new();
     let mut columns: BTreeMap<(u8, u8), String> = BTreeMap::new();
     let start = Instant::now();
@@ -355,12 +346,7 @@ fn every_task_sends_its_logged_values_and_they_equal_the_log() {
             _ => {}
         }
     }
-    let out = child.wait_with_output().expect("exits");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let out = finish_ok(child);
     let flight = flight_dir(&out.stdout);
 
     let mut streams = BTreeMap::new();
@@ -463,11 +449,11 @@ fn a_late_or_cut_off_ground_has_every_name_within_two_seconds() {
             }
         })
     };
-    let child = sim_on_link(&dir, relay_address, &["--duration", "16", "--json"])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("skyframe sim");
+    let child = spawn_piped(sim_on_link(
+        &dir,
+        relay_address,
+        &["--duration", "16", "--json"],
+    ));
 
     // Names heard since `since`, with when they came.
     let listen = |ground: &mut UdpSocket, seconds: f64| {
@@ -539,11 +525,11 @@ fn a_flood_of_forged_commands_does_not_lock_out_the_key_holder() {
     let key = write_key(&dir.join("link.key"), 0x61);
     let forger_key = LinkKey::new([0x62; 32]);
     let (mut ground, telemetry) = Ground::listening();
-    let child = sim_on_link(&dir, telemetry, &["--duration", "30", "--json"])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("skyframe sim");
+    let child = spawn_piped(sim_on_link(
+        &dir,
+        telemetry,
+        &["--duration", "30", "--json"],
+    ));
     ground.next(Duration::from_secs(10)).expect("telemetry");
     let (vehicle, run_id) = (ground.vehicle.expect("vehicle"), ground.run_id);
 
@@ -637,12 +623,7 @@ fn a_flood_of_forged_commands_does_not_lock_out_the_key_holder() {
     }
     let counters = counters.expect("an executive status after the flood");
     ground.send(Command::Stop, &key);
-    let out = child.wait_with_output().expect("exits");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let out = finish_ok(child);
     eprintln!(
         "flood: {sent} forged datagrams in {:.1} s ({rate:.0}/s); genuine acknowledged \
          {acknowledged}/50; vehicle counted bad signature {}, rate-limited {}, accepted {}",

@@ -11,7 +11,9 @@
 use skyframe_core::link::params::ParamTable;
 use skyframe_core::tasks::control::{ControlSettings, define_params};
 use skyframe_shell::mavlink::params::mavlink_id;
-use skyframe_tests::{csv_column, csv_columns, csv_rows, scratch, skyframe, to_csv, workspace};
+use skyframe_tests::{
+    csv_column, csv_columns, csv_rows, scratch, skyframe, spawn_piped, to_csv, workspace,
+};
 use std::net::UdpSocket;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
@@ -645,25 +647,23 @@ fn a_mavlink_shutdown_ends_a_run_with_a_stuck_task_within_a_second() {
     let endpoint = format!("udpin:127.0.0.1:{port}");
     // Real time (the stuck task must really hold the executive): imu stuck for 10 s from
     // frame 300 (3 s).
-    let sim = skyframe()
-        .args([
-            "sim",
-            "--no-link",
-            "--priority",
-            "0",
-            "--duration",
-            "30",
-            "--inject-overrun",
-            "imu:10000000@300..301",
-            "--mavlink",
-            &endpoint,
-            "--log-dir",
-        ])
-        .arg(&dir)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("sim");
+    let sim = spawn_piped(
+        skyframe()
+            .args([
+                "sim",
+                "--no-link",
+                "--priority",
+                "0",
+                "--duration",
+                "30",
+                "--inject-overrun",
+                "imu:10000000@300..301",
+                "--mavlink",
+                &endpoint,
+                "--log-dir",
+            ])
+            .arg(&dir),
+    );
     let seen = ground(port, "stop", Some("5"));
     let sent = Instant::now();
     assert_eq!(seen["stop_ack"], 0, "shutdown accepted");

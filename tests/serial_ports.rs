@@ -3,8 +3,9 @@
 //! with both platform openers: Linux's (the serialport crate) and QNX's termios port, which
 //! is portable POSIX code and runs here too.
 
-use serialport::{SerialPort, TTYPort};
+use serialport::TTYPort;
 use skyframe_shell::serial::{PortConfig, PortHandle, PortState, SerialOpener, spawn_port};
+use skyframe_tests::pty::{self, point};
 use skyframe_tests::scratch;
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
@@ -14,21 +15,7 @@ use std::time::{Duration, Instant};
 
 /// A pty whose slave end the shell opens by path; the test holds the master (the "device").
 fn device() -> (TTYPort, PathBuf) {
-    let (mut master, slave) = TTYPort::pair().expect("pty pair");
-    master
-        .set_timeout(Duration::from_millis(20))
-        .expect("timeout");
-    let path = PathBuf::from(slave.name().expect("slave has a name"));
-    drop(slave);
-    (master, path)
-}
-
-/// Points `link` at `target`, atomically (as udev re-creates a by-id link).
-fn point(link: &Path, target: &Path) {
-    let tmp = link.with_extension("new");
-    let _ = std::fs::remove_file(&tmp);
-    std::os::unix::fs::symlink(target, &tmp).expect("symlink");
-    std::fs::rename(&tmp, link).expect("rename");
+    pty::device(Duration::from_millis(20))
 }
 
 fn wait_for(what: &str, mut done: impl FnMut() -> bool) {

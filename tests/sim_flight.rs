@@ -2,7 +2,7 @@
 //! speaking the hardware protocols through the same decoders.
 
 use serde_json::Value;
-use skyframe_tests::{csv_rows, scratch, skyframe, to_csv};
+use skyframe_tests::{csv_rows, on_the_clock, run_ok, scratch, skyframe, to_csv};
 use std::path::{Path, PathBuf};
 
 fn sim_fast(dir: &Path, seconds: &str, seed: &str) -> Value {
@@ -11,16 +11,11 @@ fn sim_fast(dir: &Path, seconds: &str, seed: &str) -> Value {
 
 /// `skyframe sim --fast --json` logging into `dir`, plus `extra` arguments.
 fn sim_fast_with(dir: &Path, extra: &[&str]) -> Value {
-    let out = skyframe()
-        .args(["sim", "--fast", "--json", "--log-dir"])
-        .arg(dir)
-        .args(extra)
-        .output()
-        .expect("runs");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    let out = run_ok(
+        skyframe()
+            .args(["sim", "--fast", "--json", "--log-dir"])
+            .arg(dir)
+            .args(extra),
     );
     serde_json::from_slice(&out.stdout).expect("JSON report")
 }
@@ -241,15 +236,10 @@ fn a_mission_is_flown_in_auto_then_loitered_and_the_pilot_lands() {
     assert_eq!(saved, report["score"]);
     // `skyframe score DIR` scores the same logs again to the same figures (step times are
     // measured anew).
-    let again = skyframe()
-        .args(["score", "--json", "--no-reference-filters"])
-        .arg(&flight)
-        .output()
-        .expect("runs");
-    assert!(
-        again.status.success(),
-        "{}",
-        String::from_utf8_lossy(&again.stderr)
+    let again = run_ok(
+        skyframe()
+            .args(["score", "--json", "--no-reference-filters"])
+            .arg(&flight),
     );
     let again: Value = serde_json::from_slice(&again.stdout).expect("JSON");
     for group in ["window", "attitude", "position", "control"] {
@@ -470,25 +460,7 @@ fn the_faults_scenario_shows_each_fault_in_health_and_logs() {
 #[test]
 fn a_real_time_sim_flies_on_the_clock() {
     let dir = scratch("sim-realtime");
-    let out = skyframe()
-        .args([
-            "sim",
-            "--json",
-            "--duration",
-            "2",
-            "--priority",
-            "0",
-            "--no-mlockall",
-            "--log-dir",
-        ])
-        .arg(&dir)
-        .output()
-        .expect("runs");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let out = run_ok(on_the_clock("sim", "2").arg("--log-dir").arg(&dir));
     let report: Value = serde_json::from_slice(&out.stdout).expect("JSON");
     let speed_up = report["speed_up"].as_f64().unwrap_or(0.0);
     assert!((0.5..1.2).contains(&speed_up), "real time: {speed_up}");

@@ -3,7 +3,7 @@
 //! hardware.
 
 use serde_json::Value;
-use skyframe_tests::{binary, scratch, skyframe};
+use skyframe_tests::{binary, finish_ok, on_the_clock, run_ok, scratch, skyframe, spawn_piped};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
@@ -11,44 +11,24 @@ use std::time::{Duration, Instant};
 fn skyframe_run_flies_the_simulator_over_ptys_for_ten_seconds() {
     let dir = scratch("sim-pty");
     let vehicle = dir.join("vehicle.toml");
-    let sim = Command::new(binary("skyframe-sim", "skyframe-sim"))
-        .args(["--pty", "--duration", "14", "--write-vehicle"])
-        .arg(&vehicle)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("skyframe-sim starts");
+    let sim = spawn_piped(
+        Command::new(binary("skyframe-sim", "skyframe-sim"))
+            .args(["--pty", "--duration", "14", "--write-vehicle"])
+            .arg(&vehicle),
+    );
     let start = Instant::now();
     while !vehicle.exists() {
         assert!(start.elapsed() < Duration::from_secs(10), "no vehicle file");
         std::thread::sleep(Duration::from_millis(20));
     }
-    let run = skyframe()
-        .args(["run", "--vehicle"])
-        .arg(&vehicle)
-        .args([
-            "--duration",
-            "10",
-            "--json",
-            "--priority",
-            "0",
-            "--no-mlockall",
-            "--log-dir",
-        ])
-        .arg(dir.join("flights"))
-        .output()
-        .expect("skyframe run");
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
+    let run = run_ok(
+        on_the_clock("run", "10")
+            .arg("--vehicle")
+            .arg(&vehicle)
+            .arg("--log-dir")
+            .arg(dir.join("flights")),
     );
-    let sim = sim.wait_with_output().expect("skyframe-sim ends");
-    assert!(
-        sim.status.success(),
-        "{}",
-        String::from_utf8_lossy(&sim.stderr)
-    );
+    let sim = finish_ok(sim);
     let sim_says = String::from_utf8_lossy(&sim.stdout);
 
     let report: Value = serde_json::from_slice(&run.stdout).expect("JSON report");

@@ -4,37 +4,27 @@
 //! checks it on the formats the tasks actually write, so a change to a task's record that
 //! the converter does not follow fails here.
 
-use skyframe_tests::{binary, csv_column, scratch, skyframe, to_csv};
+use skyframe_tests::{binary, csv_column, run_ok, scratch, skyframe, to_csv};
 use std::process::Command;
 
 #[test]
 fn a_simulated_flight_reads_back_in_pyulog_with_px4_topics_equal_to_the_log() {
     let dir = scratch("ulog-flight");
-    let out = skyframe()
-        .args(["sim", "--fast", "--duration", "30", "--no-link", "--json"])
-        .arg("--log-dir")
-        .arg(&dir)
-        .output()
-        .expect("skyframe sim");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    let out = run_ok(
+        skyframe()
+            .args(["sim", "--fast", "--duration", "30", "--no-link", "--json"])
+            .arg("--log-dir")
+            .arg(&dir),
     );
     let report: serde_json::Value = serde_json::from_slice(&out.stdout).expect("report");
     let flight = std::path::PathBuf::from(report["flight_dir"].as_str().expect("dir"));
     let ulog = dir.join("flight.ulg");
-    let run = Command::new(binary("skyframe-log", "skyframe-log"))
-        .arg("to-ulog")
-        .arg(&flight)
-        .arg("-o")
-        .arg(&ulog)
-        .output()
-        .expect("to-ulog");
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
+    run_ok(
+        Command::new(binary("skyframe-log", "skyframe-log"))
+            .arg("to-ulog")
+            .arg(&flight)
+            .arg("-o")
+            .arg(&ulog),
     );
     let csv = to_csv(&[&flight], &dir.join("csv"));
 

@@ -1,7 +1,8 @@
 //! Helpers shared by the integration tests: where the binaries are, scratch directories.
 
+use std::borrow::BorrowMut;
 use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::process::{Child, Command, Output, Stdio};
 
 /// The workspace root.
 pub fn workspace() -> PathBuf {
@@ -48,6 +49,66 @@ pub fn binary(package: &str, name: &str) -> PathBuf {
 /// The `skyframe` flight binary.
 pub fn skyframe() -> Command {
     Command::new(binary("skyframe-linux", "skyframe"))
+}
+
+/// Runs `command` to its end; it must exit 0, or the test fails showing its stderr.
+pub fn run_ok(mut command: impl BorrowMut<Command>) -> Output {
+    let command = command.borrow_mut();
+    let out = command.output().expect("runs");
+    assert!(
+        out.status.success(),
+        "{:?} exited {:?}: {}",
+        command.get_program(),
+        out.status.code(),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
+/// Starts `command` with its standard output and error piped, for
+/// [`Child::wait_with_output`] or [`finish_ok`].
+pub fn spawn_piped(mut command: impl BorrowMut<Command>) -> Child {
+    let command = command.borrow_mut();
+    command
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap_or_else(|e| panic!("{:?} does not start: {e}", command.get_program()))
+}
+
+/// Waits for `child` (started by [`spawn_piped`]); it must exit 0, or the test fails showing
+/// its stderr.
+pub fn finish_ok(child: Child) -> Output {
+    let out = child.wait_with_output().expect("exits");
+    assert!(
+        out.status.success(),
+        "exited {:?}: {}",
+        out.status.code(),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
+/// A run's standard output as JSON (its `--json` report).
+pub fn json_of(stdout: &[u8]) -> serde_json::Value {
+    serde_json::from_slice(stdout)
+        .unwrap_or_else(|e| panic!("not JSON ({e}): {}", String::from_utf8_lossy(stdout)))
+}
+
+/// `skyframe SUBCOMMAND --duration SECONDS --json` on the real clock, without the real-time
+/// settings (the tests run beside each other: no priority, no locked memory).
+pub fn on_the_clock(subcommand: &str, seconds: &str) -> Command {
+    let mut command = skyframe();
+    command.args([
+        subcommand,
+        "--duration",
+        seconds,
+        "--json",
+        "--priority",
+        "0",
+        "--no-mlockall",
+    ]);
+    command
 }
 
 /// A fresh scratch directory for one test.
@@ -118,4 +179,42 @@ pub fn csv_column(csv: &Path, name: &str) -> Vec<f64> {
         .position(|c| c == name)
         .unwrap_or_else(|| panic!("{name} not in {columns:?}"));
     csv_rows(csv).iter().map(|r| r[index]).collect()
+}
+
+/// Pseudo-terminals standing in for serial devices.
+pub mod pty {
+    use serialport::{SerialPort, TTYPort};
+    use std::path::{Path, PathBuf};
+    use std::time::Duration;
+
+    /// A pty whose slave end is opened by path (by the shell, or a `skyframe` child); the
+    /// test holds the master, the "device", whose reads time out after `timeout`.
+    pub fn device(timeout: Duration) -> (TTYPort, PathBuf) {
+        let (mut master, slave) = TTYPort::pair().expect("pty pair");
+        // The master must not leak into a `skyframe` child: an inherited copy would keep the
+        // "device" plugged in after the test drops its own.
+        {
+            use std::os::fd::{AsRawFd, BorrowedFd};
+            // SAFETY: the fd belongs to `master`, which outlives this borrow.
+            #[allow(unsafe_code)]
+            let fd = unsafe { BorrowedFd::borrow_raw(master.as_raw_fd()) };
+            nix::fcntl::fcntl(
+                fd,
+                nix::fcntl::FcntlArg::F_SETFD(nix::fcntl::FdFlag::FD_CLOEXEC),
+            )
+            .expect("close-on-exec");
+        }
+        master.set_timeout(timeout).expect("timeout");
+        let path = PathBuf::from(slave.name().expect("slave has a name"));
+        drop(slave);
+        (master, path)
+    }
+
+    /// Points `link` at `target`, atomically (as udev re-creates a by-id link).
+    pub fn point(link: &Path, target: &Path) {
+        let tmp = link.with_extension("new");
+        let _ = std::fs::remove_file(&tmp);
+        std::os::unix::fs::symlink(target, &tmp).expect("symlink");
+        std::fs::rename(&tmp, link).expect("rename");
+    }
 }

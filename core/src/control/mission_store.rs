@@ -166,16 +166,8 @@ impl MissionStore {
 
 #[cfg(test)]
 mod tests {
+    use super::super::mission::tests::wp;
     use super::*;
-
-    fn wp(n: f32, e: f32) -> Waypoint {
-        Waypoint {
-            north_m: n,
-            east_m: e,
-            altitude_m: 100.0,
-            airspeed_mps: 25.0,
-        }
-    }
 
     #[test]
     fn an_upload_is_in_force_only_when_committed_whole() {

@@ -110,8 +110,8 @@ mod tests {
     use super::*;
     use crate::executive::Executive;
     use crate::logfmt::reader::{Event, LogReader, Record, read_slice};
-    use crate::schedule::{FrameTable, OverrunPolicy, TaskSlot};
-    use crate::tasks::test_support::{Idle, MS, SetClock, run_frames};
+    use crate::schedule::{FrameTable, TaskSlot};
+    use crate::tasks::test_support::{Idle, MS, SetClock, run_frames, slot};
     use core::cell::Cell;
     use std::vec::Vec;
 
@@ -132,22 +132,7 @@ mod tests {
         }
     }
 
-    static SLOTS: [TaskSlot; 2] = [
-        TaskSlot {
-            name: "imu",
-            period_ns: 10 * MS,
-            offset_ns: 0,
-            budget_ns: MS,
-            on_overrun: OverrunPolicy::Log,
-        },
-        TaskSlot {
-            name: "health",
-            period_ns: 100 * MS,
-            offset_ns: 0,
-            budget_ns: MS,
-            on_overrun: OverrunPolicy::Log,
-        },
-    ];
+    static SLOTS: [TaskSlot; 2] = [slot("imu", 10, 0), slot("health", 100, 0)];
     static TABLE: FrameTable = FrameTable {
         minor_frame_ns: 10 * MS,
         margin_ns: MS,

@@ -1,11 +1,23 @@
 //! What task tests share: a clock the test sets, a frame-record sink that keeps nothing, an
-//! idle task, and a helper that runs frames at their release times.
+//! idle task, a frame-table slot, and a helper that runs frames at their release times.
 
 use crate::comm::Sink;
 use crate::executive::{Clock, Executive, FrameRecord, Task, TaskContext, TaskFault};
+use crate::schedule::{OverrunPolicy, TaskSlot};
 use core::cell::Cell;
 
 pub const MS: u64 = 1_000_000;
+
+/// A frame-table slot: `period_ms` and `offset_ms`, a 1 ms budget, overruns only logged.
+pub const fn slot(name: &'static str, period_ms: u64, offset_ms: u64) -> TaskSlot {
+    TaskSlot {
+        name,
+        period_ns: period_ms * MS,
+        offset_ns: offset_ms * MS,
+        budget_ns: MS,
+        on_overrun: OverrunPolicy::Log,
+    }
+}
 
 /// Time that stands still until the test moves it.
 pub struct SetClock(pub Cell<u64>);

@@ -172,8 +172,8 @@ impl<S: RecordSink> Task for WatchdogTask<'_, S> {
 mod tests {
     use super::*;
     use crate::executive::Executive;
-    use crate::schedule::{FrameTable, OverrunPolicy, TaskSlot};
-    use crate::tasks::test_support::{MS, SetClock, run_frames};
+    use crate::schedule::{FrameTable, TaskSlot};
+    use crate::tasks::test_support::{MS, SetClock, run_frames, slot};
     use core::cell::Cell;
 
     /// Completes its steps only while `healthy` is set; otherwise its step fails.
@@ -192,27 +192,9 @@ mod tests {
     }
 
     static SLOTS: [TaskSlot; 3] = [
-        TaskSlot {
-            name: "imu",
-            period_ns: 10 * MS,
-            offset_ns: 0,
-            budget_ns: MS,
-            on_overrun: OverrunPolicy::Log,
-        },
-        TaskSlot {
-            name: "gps",
-            period_ns: 100 * MS,
-            offset_ns: 20 * MS,
-            budget_ns: MS,
-            on_overrun: OverrunPolicy::Log,
-        },
-        TaskSlot {
-            name: "watchdog",
-            period_ns: 50 * MS,
-            offset_ns: 40 * MS,
-            budget_ns: MS,
-            on_overrun: OverrunPolicy::Log,
-        },
+        slot("imu", 10, 0),
+        slot("gps", 100, 20),
+        slot("watchdog", 50, 40),
     ];
     static TABLE: FrameTable = FrameTable {
         minor_frame_ns: 10 * MS,

@@ -431,6 +431,27 @@ impl Flight {
 
 /// The column names of a format: its comment's, when it names every field; otherwise
 /// `field<n>`, as `skyframe-logtable` names them.
+/// An identifier for the converters' outputs (ULog fields and topics, Parquet columns) from
+/// any text: ASCII alphanumerics and `_`, with `lead` put first when it would be empty or start
+/// with a digit.
+pub fn identifier(text: &str, lead: &str) -> String {
+    let name: String = text
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '_' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    if name.is_empty() || name.starts_with(|c: char| c.is_ascii_digit()) {
+        format!("{lead}{name}")
+    } else {
+        name
+    }
+}
+
 fn column_names(format: &Format, comment: Option<&str>) -> Vec<String> {
     let count = format.fields().len();
     let names: Vec<String> = comment

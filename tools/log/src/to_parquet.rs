@@ -45,20 +45,7 @@ fn parquet_type(ty: FieldType) -> (&'static str, &'static str) {
 fn column_names(layout: &Layout) -> Vec<String> {
     let mut names: Vec<String> = Vec::new();
     for (i, column) in layout.columns.iter().enumerate() {
-        let mut name: String = column
-            .trim()
-            .chars()
-            .map(|c| {
-                if c.is_ascii_alphanumeric() || c == '_' {
-                    c
-                } else {
-                    '_'
-                }
-            })
-            .collect();
-        if name.is_empty() || name.starts_with(|c: char| c.is_ascii_digit()) {
-            name = format!("c{name}");
-        }
+        let mut name = crate::flightlog::identifier(column.trim(), "c");
         if ["flight_id", "vehicle_id", "time_ns"].contains(&name.as_str()) {
             name = format!("{name}_log");
         }

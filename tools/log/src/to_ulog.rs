@@ -160,24 +160,10 @@ const SKYFRAME_TOPICS: &[(&str, u8, &str)] = &[
     ("horizon", 1, "skyframe_horizon"),
 ];
 
-/// A ULog identifier from any text: ASCII alphanumerics and `_`, not starting with a digit
-/// (column names keep their case; topic names are lower case, as PX4's).
+/// A ULog identifier from any text (column names keep their case; topic names are lower
+/// case, as PX4's).
 fn identifier(text: &str) -> String {
-    let name: String = text
-        .chars()
-        .map(|c| {
-            if c.is_ascii_alphanumeric() || c == '_' {
-                c
-            } else {
-                '_'
-            }
-        })
-        .collect();
-    if name.is_empty() || name.starts_with(|c: char| c.is_ascii_digit()) {
-        format!("x{name}")
-    } else {
-        name
-    }
+    crate::flightlog::identifier(text, "x")
 }
 
 fn skyframe_topic_name(layout: &Layout) -> String {
