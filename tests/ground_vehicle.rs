@@ -51,18 +51,20 @@ fn ground_and_vehicle_find_each_other_and_the_key_decides_who_stops_the_run() {
         probe.local_addr().expect("addr").to_string()
     };
 
+    // The vehicle's command first: finding its binary may build it, which must not eat into
+    // the monitor's 3 s.
+    let mut vehicle = on_the_clock("sim", "60");
+    vehicle
+        .args(["--commands", "127.0.0.1:0", "--telemetry", &listen, "--key"])
+        .arg(&key)
+        .arg("--log-dir")
+        .arg(dir.join("flights"));
     let monitor = Command::new(binary("skyframe-ground", "skyframe-ground"))
         .args(["monitor", "--json", "--seconds", "3", "--listen", &listen])
         .stdout(Stdio::piped())
         .spawn()
         .expect("monitor");
-    let vehicle = spawn_piped(
-        on_the_clock("sim", "60")
-            .args(["--commands", "127.0.0.1:0", "--telemetry", &listen, "--key"])
-            .arg(&key)
-            .arg("--log-dir")
-            .arg(dir.join("flights")),
-    );
+    let vehicle = spawn_piped(vehicle);
     let seen = messages(&monitor.wait_with_output().expect("monitor ends"));
     let statuses: std::collections::BTreeSet<String> = seen
         .iter()

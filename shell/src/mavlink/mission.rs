@@ -211,15 +211,7 @@ pub fn mission_from_items(
                     }
                     switch_radius.get_or_insert(i.param2);
                 }
-                if waypoints.len() == MAX_WAYPOINTS {
-                    return Err(refuse(MavMissionResult::MAV_MISSION_NO_SPACE, i.seq));
-                }
-                waypoints.push(Waypoint {
-                    north_m,
-                    east_m,
-                    altitude_m,
-                    airspeed_mps: speed,
-                });
+                push(&mut waypoints, (north_m, east_m, altitude_m), speed, i.seq)?;
             }
             MavCmd::MAV_CMD_NAV_LOITER_UNLIM if last => {
                 let radius = i.param3.abs();
@@ -236,15 +228,7 @@ pub fn mission_from_items(
                         && (w.altitude_m - altitude_m).abs() < 0.5
                 });
                 if !same {
-                    if waypoints.len() == MAX_WAYPOINTS {
-                        return Err(refuse(MavMissionResult::MAV_MISSION_NO_SPACE, i.seq));
-                    }
-                    waypoints.push(Waypoint {
-                        north_m,
-                        east_m,
-                        altitude_m,
-                        airspeed_mps: speed,
-                    });
+                    push(&mut waypoints, (north_m, east_m, altitude_m), speed, i.seq)?;
                 }
             }
             _ => return Err(refuse(MavMissionResult::MAV_MISSION_UNSUPPORTED, i.seq)),
@@ -259,6 +243,25 @@ pub fn mission_from_items(
         mission.switch_radius_m = r;
     }
     Ok(mission)
+}
+
+/// One more waypoint of an upload, refused as MAV_MISSION_NO_SPACE past skyframe's capacity.
+fn push(
+    waypoints: &mut Vec<Waypoint>,
+    (north_m, east_m, altitude_m): (f32, f32, f32),
+    airspeed_mps: f32,
+    seq: u16,
+) -> Result<(), Refusal> {
+    if waypoints.len() == MAX_WAYPOINTS {
+        return Err(refuse(MavMissionResult::MAV_MISSION_NO_SPACE, seq));
+    }
+    waypoints.push(Waypoint {
+        north_m,
+        east_m,
+        altitude_m,
+        airspeed_mps,
+    });
+    Ok(())
 }
 
 /// Two missions fly the same (positions within 0.5 m: degE7 steps are 1.1 cm).

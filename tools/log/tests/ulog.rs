@@ -6,7 +6,7 @@ mod common;
 
 use std::process::Command;
 
-use common::WHOLE;
+use common::{WHOLE, skyframe_log, stderr};
 
 const DUMP: &str = r#"
 import sys
@@ -56,23 +56,15 @@ fn ulog_reads_back_with_pyulog() {
     bytes.extend_from_slice(&WHOLE[131..]);
     std::fs::write(&log, &bytes).expect("write");
     let ulg = dir.path().join("flight.ulg");
-    let output = Command::new(env!("CARGO_BIN_EXE_skyframe-log"))
-        .args([
-            "to-ulog",
-            log.to_str().expect("utf-8"),
-            "-o",
-            ulg.to_str().expect("utf-8"),
-        ])
-        .output()
-        .expect("runs");
+    let output = skyframe_log(&[
+        "to-ulog",
+        log.to_str().expect("utf-8"),
+        "-o",
+        ulg.to_str().expect("utf-8"),
+    ]);
+    assert_eq!(output.status.code(), Some(0), "{}", stderr(&output));
     assert_eq!(
-        output.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&output.stderr)
-    );
-    assert_eq!(
-        String::from_utf8_lossy(&output.stderr),
+        stderr(&output),
         format!(
             "skyframe-log: note: {}: 2 byte arrays not converted (ULog has no variable-length \
              messages)\n",

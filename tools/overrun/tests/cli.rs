@@ -356,27 +356,9 @@ fn plot_writes_png_and_svg() {
     }
 }
 
-/// The `skyframe` flight binary, built if needed (as `tests/common` does).
+/// The `skyframe` flight binary, built if needed.
 fn skyframe() -> PathBuf {
-    let exe = std::env::current_exe().unwrap_or_default();
-    let profile_dir = exe
-        .parent()
-        .and_then(Path::parent)
-        .map(Path::to_path_buf)
-        .unwrap_or_default();
-    static BUILT: std::sync::Once = std::sync::Once::new();
-    BUILT.call_once(|| {
-        let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
-        let mut cmd = Command::new(cargo);
-        cmd.args(["build", "-q", "-p", "skyframe-linux", "--bin", "skyframe"]);
-        if profile_dir.file_name().is_some_and(|n| n == "release") {
-            cmd.arg("--release");
-        }
-        let workspace = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
-        let status = cmd.current_dir(workspace).status().expect("cargo runs");
-        assert!(status.success(), "building skyframe failed");
-    });
-    profile_dir.join("skyframe")
+    skyframe_tests::binary("skyframe-linux", "skyframe")
 }
 
 #[test]
