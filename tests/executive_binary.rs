@@ -5,7 +5,7 @@ use nix::sys::signal::{Signal, kill};
 use nix::unistd::Pid;
 use serde_json::Value;
 use skyframe_tests::{on_the_clock, run_ok, scratch, skyframe, spawn_piped, workspace};
-use std::process::{Command, Stdio};
+use std::process::Command;
 use std::time::{Duration, Instant};
 
 /// `skyframe idle` (the executive alone) logging into a fresh scratch directory (never the caller's `flights/`).

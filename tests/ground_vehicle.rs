@@ -5,7 +5,7 @@
 
 use serde_json::Value;
 use skyframe_logtable::load_stream;
-use skyframe_tests::{binary, finish_ok, on_the_clock, scratch, skyframe, spawn_piped, to_csv};
+use skyframe_tests::{binary, finish_ok, on_the_clock, scratch, spawn_piped, to_csv};
 use std::net::UdpSocket;
 use std::os::unix::fs::PermissionsExt;
 use std::path::Path;

@@ -4,12 +4,10 @@
 //! solution — these frames are synthetic and not of this flight).
 
 use serde_json::Value;
-use skyframe_tests::{
-    binary, finish_ok, on_the_clock, run_ok, scratch, skyframe, spawn_piped, to_csv,
-};
+use skyframe_tests::{binary, finish_ok, on_the_clock, run_ok, scratch, spawn_piped, to_csv};
 use std::net::UdpSocket;
 use std::os::unix::fs::PermissionsExt;
-use std::process::{Command, Stdio};
+use std::process::Command;
 
 fn free_port() -> String {
     let probe = UdpSocket::bind("127.0.0.1:0").expect("probe");

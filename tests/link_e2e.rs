@@ -623,7 +623,7 @@ fn a_flood_of_forged_commands_does_not_lock_out_the_key_holder() {
     }
     let counters = counters.expect("an executive status after the flood");
     ground.send(Command::Stop, &key);
-    let out = finish_ok(child);
+    finish_ok(child);
     eprintln!(
         "flood: {sent} forged datagrams in {:.1} s ({rate:.0}/s); genuine acknowledged \
          {acknowledged}/50; vehicle counted bad signature {}, rate-limited {}, accepted {}",

@@ -16,7 +16,7 @@ use skyframe_tests::{
 };
 use std::net::UdpSocket;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+use std::process::{Child, Command};
 use std::time::{Duration, Instant};
 
 /// The flood test runs alone: its 150 000 frames/s share two cores with nothing else of this
@@ -86,16 +86,91 @@ duration_s = 120
 "#;
 
 fn start_sim(dir: &Path, args: &[&str]) -> Child {
-    skyframe()
-        .arg("sim")
-        .args(args)
-        .arg("--log-dir")
-        .arg(dir)
-        .arg("--json")
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("skyframe sim starts")
+    spawn_piped(
+        skyframe()
+            .arg("sim")
+            .args(args)
+            .arg("--log-dir")
+            .arg(dir)
+            .arg("--json"),
+    )
+}
+
+/// What a test of one vehicle starts from: the lock that keeps it apart from the flood test
+/// (hold it to the test's end), a scratch directory and a free port for the ground station.
+fn setup(test: &str) -> (std::sync::RwLockReadGuard<'static, ()>, PathBuf, u16) {
+    let others = FLOOD_ALONE
+        .read()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
+    (others, scratch(test), free_port())
+}
+
+/// [`PARKED`] written into `dir`; its path.
+fn parked_in(dir: &Path) -> String {
+    let scenario = dir.join("parked.toml");
+    std::fs::write(&scenario, PARKED).expect("scenario");
+    scenario.to_str().expect("utf-8 path").to_string()
+}
+
+/// `sim --speedup SPEEDUP --no-link --mavlink udpin:127.0.0.1:PORT ARGS…`: MAVLink alone, the
+/// vehicle listening on `port`.
+fn sim_on_mavlink(dir: &Path, port: u16, speedup: &str, args: &[&str]) -> Child {
+    let endpoint = format!("udpin:127.0.0.1:{port}");
+    let mavlink = ["--speedup", speedup, "--no-link", "--mavlink", &endpoint];
+    start_sim(dir, &[&mavlink[..], args].concat())
+}
+
+/// The AUTO circuit (`scenarios/auto-circuit.toml` with its mission), whole (235 s), at 8×
+/// real time, on MAVLink alone.
+fn auto_circuit_on_mavlink(dir: &Path, port: u16) -> Child {
+    let path = |p: &str| {
+        workspace()
+            .join(p)
+            .to_str()
+            .expect("utf-8 path")
+            .to_string()
+    };
+    let (scenario, mission) = (
+        path("scenarios/auto-circuit.toml"),
+        path("scenarios/circuit-mission.toml"),
+    );
+    let circuit = [
+        "--duration",
+        "235",
+        "--scenario",
+        &scenario,
+        "--mission",
+        &mission,
+    ];
+    sim_on_mavlink(dir, port, "8", &circuit)
+}
+
+/// The sequence numbers of a mission's waypoints (MAV_CMD_NAV_WAYPOINT items).
+fn waypoint_seqs(items: &[serde_json::Value]) -> Vec<u64> {
+    items
+        .iter()
+        .filter(|i| i["command"] == 16)
+        .map(|i| i["seq"].as_u64().expect("seq"))
+        .collect()
+}
+
+/// The MISSION_ITEM_REACHED sequence numbers the ground saw, in order.
+fn reached(seen: &serde_json::Value) -> Vec<u64> {
+    seen["reached"]
+        .as_array()
+        .expect("reached")
+        .iter()
+        .map(|s| s.as_u64().expect("seq"))
+        .collect()
+}
+
+/// A MAVLink 2 signing key file (mode 0600) holding `bytes`; its path.
+fn key_file(dir: &Path, bytes: &[u8]) -> String {
+    use std::os::unix::fs::PermissionsExt;
+    let key = dir.join("mavlink.key");
+    std::fs::write(&key, bytes).expect("key");
+    std::fs::set_permissions(&key, std::fs::Permissions::from_mode(0o600)).expect("chmod");
+    key.to_str().expect("utf-8 path").to_string()
 }
 
 /// Ends a run with SIGINT (a clean stop) and returns its JSON report.
@@ -146,27 +221,18 @@ fn flight_csv(report: &serde_json::Value, dir: &Path) -> PathBuf {
 
 #[test]
 fn a_parked_vehicle_speaks_mavlink_to_pymavlink() {
-    let _others = FLOOD_ALONE
-        .read()
-        .unwrap_or_else(std::sync::PoisonError::into_inner);
-    let dir = scratch("mavlink-parked");
-    let scenario = dir.join("parked.toml");
-    std::fs::write(&scenario, PARKED).expect("scenario");
+    let (_others, dir, port) = setup("mavlink-parked");
+    let dir = dir.as_path();
     let mission = workspace().join("scenarios/circuit-mission.toml");
-    let port = free_port();
-    let endpoint = format!("udpin:127.0.0.1:{port}");
-    let sim = start_sim(
-        &dir,
+    let sim = sim_on_mavlink(
+        dir,
+        port,
+        "1",
         &[
-            "--speedup",
-            "1",
-            "--no-link",
             "--scenario",
-            scenario.to_str().expect("path"),
+            &parked_in(dir),
             "--mission",
             mission.to_str().expect("path"),
-            "--mavlink",
-            &endpoint,
             // A warning the vehicle reports: imu over its budget in frames 500..505 (5 s).
             "--inject-overrun",
             "imu:1000@500..505",
@@ -174,7 +240,7 @@ fn a_parked_vehicle_speaks_mavlink_to_pymavlink() {
     );
     let seen = ground(port, "parked", None);
     let report = stop_sim(sim);
-    let csv = flight_csv(&report, &dir);
+    let csv = flight_csv(&report, dir);
 
     // The scenario's home: the simulator's GPS origin, as its truth log records it.
     let home_lat = csv_column(&csv.join("truth.2.csv"), "origin_lat_deg")[0];
@@ -426,47 +492,15 @@ fn a_parked_vehicle_speaks_mavlink_to_pymavlink() {
 
 #[test]
 fn with_speedup_the_auto_mission_reports_every_waypoint_reached() {
-    let _others = FLOOD_ALONE
-        .read()
-        .unwrap_or_else(std::sync::PoisonError::into_inner);
-    let dir = scratch("mavlink-auto");
-    let port = free_port();
-    let endpoint = format!("udpin:127.0.0.1:{port}");
-    let scenario = workspace().join("scenarios/auto-circuit.toml");
-    let mission = workspace().join("scenarios/circuit-mission.toml");
+    let (_others, dir, port) = setup("mavlink-auto");
     let started = Instant::now();
-    let sim = start_sim(
-        &dir,
-        &[
-            "--speedup",
-            "8",
-            "--no-link",
-            "--duration",
-            "235",
-            "--scenario",
-            scenario.to_str().expect("path"),
-            "--mission",
-            mission.to_str().expect("path"),
-            "--mavlink",
-            &endpoint,
-        ],
-    );
+    let sim = auto_circuit_on_mavlink(&dir, port);
     let seen = ground(port, "auto", Some("60"));
     let report = finish_sim(sim);
     let wall = started.elapsed().as_secs_f64();
     assert_eq!(seen["upload_same"], 0, "the uploaded mission is accepted");
     let items = seen["mission"].as_array().expect("mission");
-    let waypoint_seqs: Vec<u64> = items
-        .iter()
-        .filter(|i| i["command"] == 16)
-        .map(|i| i["seq"].as_u64().expect("seq"))
-        .collect();
-    let reached: Vec<u64> = seen["reached"]
-        .as_array()
-        .expect("reached")
-        .iter()
-        .map(|s| s.as_u64().expect("seq"))
-        .collect();
+    let (reached, waypoint_seqs) = (reached(&seen), waypoint_seqs(items));
     assert_eq!(
         reached, waypoint_seqs,
         "MISSION_ITEM_REACHED for each waypoint, in order"
@@ -509,30 +543,8 @@ fn with_speedup_the_auto_mission_reports_every_waypoint_reached() {
 
 #[test]
 fn in_flight_a_new_mission_is_flown_then_set_current_and_clear_all_take_effect() {
-    let _others = FLOOD_ALONE
-        .read()
-        .unwrap_or_else(std::sync::PoisonError::into_inner);
-    let dir = scratch("mavlink-inflight");
-    let port = free_port();
-    let endpoint = format!("udpin:127.0.0.1:{port}");
-    let scenario = workspace().join("scenarios/auto-circuit.toml");
-    let mission = workspace().join("scenarios/circuit-mission.toml");
-    let sim = start_sim(
-        &dir,
-        &[
-            "--speedup",
-            "8",
-            "--no-link",
-            "--duration",
-            "235",
-            "--scenario",
-            scenario.to_str().expect("path"),
-            "--mission",
-            mission.to_str().expect("path"),
-            "--mavlink",
-            &endpoint,
-        ],
-    );
+    let (_others, dir, port) = setup("mavlink-inflight");
+    let sim = auto_circuit_on_mavlink(&dir, port);
     let seen = ground(port, "inflight", None);
     let report = finish_sim(sim);
     assert!(
@@ -554,18 +566,12 @@ fn in_flight_a_new_mission_is_flown_then_set_current_and_clear_all_take_effect()
         }
     }
     // Flown: MISSION_ITEM_REACHED for each of its waypoints, in order.
-    let want: Vec<u64> = up
-        .iter()
-        .filter(|i| i["command"] == 16)
-        .map(|i| i["seq"].as_u64().expect("seq"))
-        .collect();
-    let reached: Vec<u64> = seen["reached"]
-        .as_array()
-        .expect("reached")
-        .iter()
-        .map(|s| s.as_u64().expect("seq"))
-        .collect();
-    assert_eq!(reached, want, "the new mission's waypoints reached: {seen}");
+    let want = waypoint_seqs(up);
+    assert_eq!(
+        reached(&seen),
+        want,
+        "the new mission's waypoints reached: {seen}"
+    );
     // Set current: MISSION_CURRENT shows it.
     assert_eq!(seen["set_current"]["seq"].as_u64(), Some(want[0]), "{seen}");
     // Clear all: accepted, and a download has nothing.
@@ -589,32 +595,15 @@ fn in_flight_a_new_mission_is_flown_then_set_current_and_clear_all_take_effect()
 
 #[test]
 fn with_a_key_only_signed_sets_change_anything() {
-    let _others = FLOOD_ALONE
-        .read()
-        .unwrap_or_else(std::sync::PoisonError::into_inner);
-    let dir = scratch("mavlink-signed");
+    let (_others, dir, port) = setup("mavlink-signed");
+    let dir = dir.as_path();
     let key_hex = "0123456789abcdef0123456789abcdef0123456789abcdef0123456789abcdef";
-    let key = dir.join("mavlink.key");
-    std::fs::write(&key, format!("{key_hex}\n")).expect("key");
-    use std::os::unix::fs::PermissionsExt;
-    std::fs::set_permissions(&key, std::fs::Permissions::from_mode(0o600)).expect("chmod");
-    let scenario = dir.join("parked.toml");
-    std::fs::write(&scenario, PARKED).expect("scenario");
-    let port = free_port();
-    let endpoint = format!("udpin:127.0.0.1:{port}");
-    let sim = start_sim(
-        &dir,
-        &[
-            "--speedup",
-            "1",
-            "--no-link",
-            "--scenario",
-            scenario.to_str().expect("path"),
-            "--mavlink",
-            &endpoint,
-            "--mavlink-key",
-            key.to_str().expect("path"),
-        ],
+    let key = key_file(dir, format!("{key_hex}\n").as_bytes());
+    let sim = sim_on_mavlink(
+        dir,
+        port,
+        "1",
+        &["--scenario", &parked_in(dir), "--mavlink-key", &key],
     );
     let seen = ground(port, "signed", Some(key_hex));
     let report = stop_sim(sim);
@@ -628,7 +617,7 @@ fn with_a_key_only_signed_sets_change_anything() {
     assert_eq!(f(&seen["after_signed"]) as f32, 0.65, "signed set applied");
     assert_eq!(seen["heartbeat_signed"], true, "telemetry is signed");
     assert_eq!(report["mavlink"]["unsigned"], 1, "{}", report["mavlink"]);
-    let csv = flight_csv(&report, &dir);
+    let csv = flight_csv(&report, dir);
     let gains = csv_column(&csv.join("control.2.csv"), "roll_kp");
     assert_eq!(gains.last(), Some(&0.65));
     assert!(
@@ -639,11 +628,7 @@ fn with_a_key_only_signed_sets_change_anything() {
 
 #[test]
 fn a_mavlink_shutdown_ends_a_run_with_a_stuck_task_within_a_second() {
-    let _others = FLOOD_ALONE
-        .read()
-        .unwrap_or_else(std::sync::PoisonError::into_inner);
-    let dir = scratch("mavlink-stop");
-    let port = free_port();
+    let (_others, dir, port) = setup("mavlink-stop");
     let endpoint = format!("udpin:127.0.0.1:{port}");
     // Real time (the stuck task must really hold the executive): imu stuck for 10 s from
     // frame 300 (3 s).
@@ -701,27 +686,13 @@ fn a_flood_of_forged_frames_does_not_lock_out_the_key_holder() {
     use std::sync::atomic::{AtomicBool, Ordering};
 
     let dir = scratch("mavlink-flood");
-    let key = dir.join("mavlink.key");
-    std::fs::write(&key, [0x31u8; 32]).expect("key");
-    use std::os::unix::fs::PermissionsExt;
-    std::fs::set_permissions(&key, std::fs::Permissions::from_mode(0o600)).expect("chmod");
-    let scenario = dir.join("parked.toml");
-    std::fs::write(&scenario, PARKED).expect("scenario");
     let port = free_port();
-    let endpoint = format!("udpin:127.0.0.1:{port}");
-    let sim = start_sim(
+    let key = key_file(&dir, &[0x31u8; 32]);
+    let sim = sim_on_mavlink(
         &dir,
-        &[
-            "--speedup",
-            "1",
-            "--no-link",
-            "--scenario",
-            scenario.to_str().expect("path"),
-            "--mavlink",
-            &endpoint,
-            "--mavlink-key",
-            key.to_str().expect("path"),
-        ],
+        port,
+        "1",
+        &["--scenario", &parked_in(&dir), "--mavlink-key", &key],
     );
     let vehicle: std::net::SocketAddr = ([127, 0, 0, 1], port).into();
     let set = |value: f32| {
@@ -845,13 +816,9 @@ fn a_flood_of_forged_frames_does_not_lock_out_the_key_holder() {
 
 #[test]
 fn two_simulators_appear_as_two_vehicles_in_one_ground_station() {
-    let _others = FLOOD_ALONE
-        .read()
-        .unwrap_or_else(std::sync::PoisonError::into_inner);
-    let dir = scratch("mavlink-two");
-    let scenario = dir.join("parked.toml");
-    std::fs::write(&scenario, PARKED).expect("scenario");
-    let port = free_port();
+    let (_others, dir, port) = setup("mavlink-two");
+    let dir = dir.as_path();
+    let scenario = parked_in(dir);
     let endpoint = format!("udpout:127.0.0.1:{port}");
     let sims: Vec<Child> = ["1", "2"]
         .iter()
@@ -866,7 +833,7 @@ fn two_simulators_appear_as_two_vehicles_in_one_ground_station() {
                     "--telemetry",
                     "127.0.0.1:9",
                     "--scenario",
-                    scenario.to_str().expect("path"),
+                    &scenario,
                     "--mavlink",
                     &endpoint,
                     "--mavlink-sysid",
@@ -892,10 +859,7 @@ fn two_simulators_appear_as_two_vehicles_in_one_ground_station() {
 
 #[test]
 fn bad_mavlink_options_are_refused_in_one_line_before_the_run() {
-    let _others = FLOOD_ALONE
-        .read()
-        .unwrap_or_else(std::sync::PoisonError::into_inner);
-    let dir = scratch("mavlink-options");
+    let (_others, dir, _) = setup("mavlink-options");
     let missing = dir.join("no-such.key");
     let readable = dir.join("readable.key");
     std::fs::write(&readable, [7u8; 32]).expect("key");

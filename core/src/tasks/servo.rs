@@ -213,27 +213,18 @@ where
                     sticks,
                     mode,
                 });
+                // Constant indices into `[u16; 8]`: checked when compiled, no panic path.
                 let ch = report.pilot_us;
-                let [
-                    ch1_us,
-                    ch2_us,
-                    ch3_us,
-                    ch4_us,
-                    ch5_us,
-                    ch6_us,
-                    ch7_us,
-                    ch8_us,
-                ] = ch;
                 let record = ServoPilotLog {
                     counter: frame.counter,
-                    ch1_us,
-                    ch2_us,
-                    ch3_us,
-                    ch4_us,
-                    ch5_us,
-                    ch6_us,
-                    ch7_us,
-                    ch8_us,
+                    ch1_us: ch[0],
+                    ch2_us: ch[1],
+                    ch3_us: ch[2],
+                    ch4_us: ch[3],
+                    ch5_us: ch[4],
+                    ch6_us: ch[5],
+                    ch7_us: ch[6],
+                    ch8_us: ch[7],
                     auto: mode == ControlMode::Auto,
                     aileron: sticks.aileron,
                     elevator: sticks.elevator,

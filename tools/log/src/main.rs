@@ -184,6 +184,28 @@ pub enum Outcome {
 }
 
 impl Outcome {
+    /// A conversion's outcome: its report lines on stderr, then `Reported` if any is a
+    /// problem (anything but a `skyframe-log: note:`), `Whole` if none, `Failed` (with the
+    /// error's line) if it did not convert.
+    pub fn of_conversion(result: Result<Vec<String>, String>) -> Self {
+        match result {
+            Ok(lines) => {
+                for line in &lines {
+                    eprintln!("{line}");
+                }
+                if lines.iter().any(|l| !l.starts_with("skyframe-log: note:")) {
+                    Outcome::Reported
+                } else {
+                    Outcome::Whole
+                }
+            }
+            Err(e) => {
+                eprintln!("skyframe-log: {e}");
+                Outcome::Failed
+            }
+        }
+    }
+
     fn exit_code(self) -> ExitCode {
         match self {
             Outcome::Whole => ExitCode::SUCCESS,

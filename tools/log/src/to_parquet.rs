@@ -77,31 +77,15 @@ struct Output {
 }
 
 pub fn run(inputs: &[PathBuf], out_dir: &Path, vehicle_id: Option<&str>) -> Outcome {
-    match convert(inputs, out_dir, vehicle_id) {
-        Ok((lines, reported)) => {
-            for line in &lines {
-                eprintln!("{line}");
-            }
-            if reported {
-                Outcome::Reported
-            } else {
-                Outcome::Whole
-            }
-        }
-        Err(e) => {
-            eprintln!("skyframe-log: {e}");
-            Outcome::Failed
-        }
-    }
+    Outcome::of_conversion(convert(inputs, out_dir, vehicle_id))
 }
 
-/// Converts every flight; returns the lines to report and whether any was a problem (not
-/// just a note).
+/// Converts every flight; returns the lines to report: the logs' damage, and notes.
 fn convert(
     inputs: &[PathBuf],
     out_dir: &Path,
     vehicle_id: Option<&str>,
-) -> Result<(Vec<String>, bool), String> {
+) -> Result<Vec<String>, String> {
     if inputs.is_empty() {
         return Err("to-parquet: no flight directories given".into());
     }
@@ -115,11 +99,9 @@ fn convert(
     let vehicle_id = vehicle_id.unwrap_or("unknown");
     let mut outputs: BTreeMap<(String, u8), Vec<Output>> = BTreeMap::new();
     let mut lines = Vec::new();
-    let mut reported = false;
     let mut rows = 0usize;
     for (input, files) in flights {
         let flight = Flight::load(&files)?;
-        reported |= !flight.damage.is_empty();
         lines.extend(flight.damage.iter().map(|d| d.line.clone()));
         let flight_id = crate::to_ulog::flight_id(input);
         // Layouts of one stream and index with the same schema share a row group.
@@ -177,7 +159,7 @@ fn convert(
                 .map_err(|e| format!("{}: {e}", output.path.display()))?;
         }
     }
-    Ok((lines, reported))
+    Ok(lines)
 }
 
 fn open(path: &Path, schema_text: &str) -> Result<Output, String> {

@@ -53,25 +53,7 @@ pub fn run(input: &Path, output: Option<&Path>, options: &UlogOptions) -> Outcom
         None if input.is_dir() => input.join("flight.ulg"),
         None => input.with_extension("ulg"),
     };
-    match convert(input, &output, options) {
-        Ok(reported) => {
-            for line in &reported {
-                eprintln!("{line}");
-            }
-            if reported
-                .iter()
-                .any(|l| !l.starts_with("skyframe-log: note:"))
-            {
-                Outcome::Reported
-            } else {
-                Outcome::Whole
-            }
-        }
-        Err(e) => {
-            eprintln!("skyframe-log: {e}");
-            Outcome::Failed
-        }
-    }
+    Outcome::of_conversion(convert(input, &output, options))
 }
 
 /// Converts; returns the lines to report (reader problems, notes).

@@ -1,7 +1,7 @@
 //! skyframe-overrun end to end: a synthetic timing log with known overruns gives the known
 //! figures; damaged and unusable input; figures; `run --` on real flights.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::{Command, Output};
 
 use serde_json::Value;
