@@ -194,6 +194,23 @@ fn cheap(_: u64) -> u64 {
     100 * US
 }
 
+/// The table's three tasks with these step costs and `setup` applied, started at time 0, then
+/// handed to `test` with their harness and the journal of their calls.
+fn started(
+    costs: [fn(u64) -> u64; 3],
+    setup: impl FnOnce(&mut [Scripted<'_>; 3]),
+    test: impl FnOnce(&mut Harness<'_>, &mut [&mut dyn Task; 3], &Journal),
+) {
+    let clock = MockClock::default();
+    let journal = Journal::default();
+    let mut scripted = three(&clock, &journal, costs);
+    setup(&mut scripted);
+    let mut tasks = scripted.each_mut().map(|t| t as &mut dyn Task);
+    let mut h = Harness::new(&clock);
+    h.exec.start(&mut tasks, 0).expect("start");
+    test(&mut h, &mut tasks, &journal);
+}
+
 #[test]
 fn frames_release_the_table_tasks_in_order() {
     let clock = MockClock::default();
@@ -237,11 +254,7 @@ fn frames_release_the_table_tasks_in_order() {
 
 #[test]
 fn budget_overrun_with_log_policy_is_counted_and_the_task_keeps_running() {
-    let clock = MockClock::default();
-    let journal = Journal::default();
-    let mut scripted = three(
-        &clock,
-        &journal,
+    started(
         [
             |f| {
                 if f == 1 { 1500 * US } else { 100 * US }
@@ -249,33 +262,29 @@ fn budget_overrun_with_log_policy_is_counted_and_the_task_keeps_running() {
             cheap,
             cheap,
         ],
+        |_| {},
+        |h, tasks, _| {
+            h.frame(tasks, 0);
+            let r = h.frame(tasks, 0);
+            assert_eq!(r.over_budget, 0b001);
+            assert!(!h.health(0).in_frame);
+            let r = h.frame(tasks, 0);
+            assert_eq!(r.ran & 1, 1, "log policy keeps the next release");
+            let fast = h.health(0);
+            assert_eq!(fast.overruns.budget, 1);
+            assert_eq!(fast.exec.max_ns, 1500 * US);
+            assert_eq!(
+                fast.exec.histogram[10], 1,
+                "150 % of budget lands in the 100-200 % bucket"
+            );
+            assert!(fast.in_frame);
+        },
     );
-    let mut tasks = scripted.each_mut().map(|t| t as &mut dyn Task);
-    let mut h = Harness::new(&clock);
-    h.exec.start(&mut tasks, 0).expect("start");
-    h.frame(&mut tasks, 0);
-    let r = h.frame(&mut tasks, 0);
-    assert_eq!(r.over_budget, 0b001);
-    assert!(!h.health(0).in_frame);
-    let r = h.frame(&mut tasks, 0);
-    assert_eq!(r.ran & 1, 1, "log policy keeps the next release");
-    let fast = h.health(0);
-    assert_eq!(fast.overruns.budget, 1);
-    assert_eq!(fast.exec.max_ns, 1500 * US);
-    assert_eq!(
-        fast.exec.histogram[10], 1,
-        "150 % of budget lands in the 100-200 % bucket"
-    );
-    assert!(fast.in_frame);
 }
 
 #[test]
 fn skip_policy_drops_exactly_the_next_release() {
-    let clock = MockClock::default();
-    let journal = Journal::default();
-    let mut scripted = three(
-        &clock,
-        &journal,
+    started(
         [
             cheap,
             |f| {
@@ -283,67 +292,59 @@ fn skip_policy_drops_exactly_the_next_release() {
             },
             cheap,
         ],
+        |_| {},
+        |h, tasks, _| {
+            let records: Vec<_> = (0..6).map(|_| h.frame(tasks, 0)).collect();
+            assert_eq!(records[0].over_budget, 0b010);
+            assert_eq!(records[2].skipped, 0b010, "frame 2 is slow's next release");
+            assert_eq!(records[2].ran & 0b010, 0);
+            assert_eq!(
+                records[4].ran & 0b010,
+                0b010,
+                "the release after that runs again"
+            );
+            let slow = h.health(1);
+            assert_eq!((slow.releases, slow.skipped, slow.exec.count), (3, 1, 2));
+        },
     );
-    let mut tasks = scripted.each_mut().map(|t| t as &mut dyn Task);
-    let mut h = Harness::new(&clock);
-    h.exec.start(&mut tasks, 0).expect("start");
-    let records: Vec<_> = (0..6).map(|_| h.frame(&mut tasks, 0)).collect();
-    assert_eq!(records[0].over_budget, 0b010);
-    assert_eq!(records[2].skipped, 0b010, "frame 2 is slow's next release");
-    assert_eq!(records[2].ran & 0b010, 0);
-    assert_eq!(
-        records[4].ran & 0b010,
-        0b010,
-        "the release after that runs again"
-    );
-    let slow = h.health(1);
-    assert_eq!((slow.releases, slow.skipped, slow.exec.count), (3, 1, 2));
 }
 
 #[test]
 fn reset_policy_runs_recover_then_init_before_the_next_release() {
-    let clock = MockClock::default();
-    let journal = Journal::default();
-    let mut scripted = three(
-        &clock,
-        &journal,
+    started(
         [cheap, cheap, |f| if f == 1 { 3 * MS } else { 100 * US }],
+        |_| {},
+        |h, tasks, journal| {
+            let records: Vec<_> = (0..4).map(|_| h.frame(tasks, 0)).collect();
+            assert_eq!(records[1].over_budget, 0b100);
+            assert_eq!(records[3].reset, 0b100);
+            let odd_calls: Vec<_> = journal
+                .borrow()
+                .iter()
+                .filter(|(n, _, _)| *n == "odd")
+                .map(|(_, what, frame)| (*what, *frame))
+                .collect();
+            assert_eq!(
+                odd_calls,
+                [
+                    ("init", 0),
+                    ("step", 1),
+                    ("recover", 3),
+                    ("init", 3),
+                    ("step", 3)
+                ]
+            );
+            let odd = h.health(2);
+            assert_eq!((odd.resets, odd.overruns.budget), (1, 1));
+            assert!(odd.initialised && odd.in_frame);
+        },
     );
-    let mut tasks = scripted.each_mut().map(|t| t as &mut dyn Task);
-    let mut h = Harness::new(&clock);
-    h.exec.start(&mut tasks, 0).expect("start");
-    let records: Vec<_> = (0..4).map(|_| h.frame(&mut tasks, 0)).collect();
-    assert_eq!(records[1].over_budget, 0b100);
-    assert_eq!(records[3].reset, 0b100);
-    let odd_calls: Vec<_> = journal
-        .borrow()
-        .iter()
-        .filter(|(n, _, _)| *n == "odd")
-        .map(|(_, what, frame)| (*what, *frame))
-        .collect();
-    assert_eq!(
-        odd_calls,
-        [
-            ("init", 0),
-            ("step", 1),
-            ("recover", 3),
-            ("init", 3),
-            ("step", 3)
-        ]
-    );
-    let odd = h.health(2);
-    assert_eq!((odd.resets, odd.overruns.budget), (1, 1));
-    assert!(odd.initialised && odd.in_frame);
 }
 
 #[test]
 fn frame_overrun_is_charged_to_the_task_running_at_the_deadline_and_delays_the_next_frame() {
-    let clock = MockClock::default();
-    let journal = Journal::default();
     // fast takes 6 ms then slow 5 ms in frame 0: the 10 ms deadline passes inside slow.
-    let mut scripted = three(
-        &clock,
-        &journal,
+    started(
         [
             |f| {
                 if f == 0 { 6 * MS } else { 100 * US }
@@ -353,108 +354,106 @@ fn frame_overrun_is_charged_to_the_task_running_at_the_deadline_and_delays_the_n
             },
             cheap,
         ],
+        |_| {},
+        |h, tasks, _| {
+            let r0 = h.frame(tasks, 0);
+            assert_eq!(r0.flags & timing::flags::OVERRUN, timing::flags::OVERRUN);
+            assert_eq!(r0.over_frame, 0b010);
+            assert_eq!(r0.over_budget, 0b011);
+            // The loop sleeps until frame 1 is due, but it is already 11 ms: a late start of 1 ms.
+            let r1 = h.exec.run_frame(tasks, &mut h.records);
+            assert_eq!(r1.frame, 1);
+            assert_eq!(r1.start_latency_ns, MS as u32);
+            assert_eq!(r1.missed_before, 0);
+            assert_eq!(h.exec.health().frames.overrun, 1);
+            assert_eq!(h.health(1).overruns.frame, 1);
+            assert_eq!(h.health(0).overruns.frame, 0);
+        },
     );
-    let mut tasks = scripted.each_mut().map(|t| t as &mut dyn Task);
-    let mut h = Harness::new(&clock);
-    h.exec.start(&mut tasks, 0).expect("start");
-    let r0 = h.frame(&mut tasks, 0);
-    assert_eq!(r0.flags & timing::flags::OVERRUN, timing::flags::OVERRUN);
-    assert_eq!(r0.over_frame, 0b010);
-    assert_eq!(r0.over_budget, 0b011);
-    // The loop sleeps until frame 1 is due, but it is already 11 ms: a late start of 1 ms.
-    let r1 = h.exec.run_frame(&mut tasks, &mut h.records);
-    assert_eq!(r1.frame, 1);
-    assert_eq!(r1.start_latency_ns, MS as u32);
-    assert_eq!(r1.missed_before, 0);
-    assert_eq!(h.exec.health().frames.overrun, 1);
-    assert_eq!(h.health(1).overruns.frame, 1);
-    assert_eq!(h.health(0).overruns.frame, 0);
 }
 
 #[test]
 fn late_start_beyond_threshold_is_flagged_but_not_below_it() {
-    let clock = MockClock::default();
-    let journal = Journal::default();
-    let mut scripted = three(&clock, &journal, [cheap, cheap, cheap]);
-    let mut tasks = scripted.each_mut().map(|t| t as &mut dyn Task);
-    let mut h = Harness::new(&clock);
-    h.exec.start(&mut tasks, 0).expect("start");
-    let on_time = h.frame(&mut tasks, 900 * US);
-    let late = h.frame(&mut tasks, 1200 * US);
-    assert_eq!(on_time.flags & timing::flags::LATE, 0);
-    assert_eq!(late.flags & timing::flags::LATE, timing::flags::LATE);
-    assert_eq!(late.start_latency_ns, 1_200_000);
-    let stats = h.exec.health().frames;
-    assert_eq!((stats.late, stats.max_start_latency_ns), (1, 1200 * US));
+    started(
+        [cheap; 3],
+        |_| {},
+        |h, tasks, _| {
+            let on_time = h.frame(tasks, 900 * US);
+            let late = h.frame(tasks, 1200 * US);
+            assert_eq!(on_time.flags & timing::flags::LATE, 0);
+            assert_eq!(late.flags & timing::flags::LATE, timing::flags::LATE);
+            assert_eq!(late.start_latency_ns, 1_200_000);
+            let stats = h.exec.health().frames;
+            assert_eq!((stats.late, stats.max_start_latency_ns), (1, 1200 * US));
+        },
+    );
 }
 
 #[test]
 fn whole_missed_frames_are_skipped_and_their_releases_counted() {
-    let clock = MockClock::default();
-    let journal = Journal::default();
-    let mut scripted = three(&clock, &journal, [cheap, cheap, cheap]);
-    let mut tasks = scripted.each_mut().map(|t| t as &mut dyn Task);
-    let mut h = Harness::new(&clock);
-    h.exec.start(&mut tasks, 0).expect("start");
-    h.frame(&mut tasks, 0);
-    // Frame 1 is due at 10 ms; wake at 43 ms: frames 1, 2, 3 are gone, frame 4 is 3 ms late.
-    clock.set(43 * MS);
-    let r = h.exec.run_frame(&mut tasks, &mut h.records);
-    assert_eq!(
-        (r.frame, r.missed_before, r.start_latency_ns),
-        (4, 3, 3 * MS as u32)
+    started(
+        [cheap; 3],
+        |_| {},
+        |h, tasks, _| {
+            h.frame(tasks, 0);
+            // Frame 1 is due at 10 ms; wake at 43 ms: frames 1, 2, 3 are gone, frame 4 is 3 ms late.
+            h.clock.set(43 * MS);
+            let r = h.exec.run_frame(tasks, &mut h.records);
+            assert_eq!(
+                (r.frame, r.missed_before, r.start_latency_ns),
+                (4, 3, 3 * MS as u32)
+            );
+            assert_eq!(r.ran, 0b011, "frame 4 releases fast and slow");
+            assert_eq!(h.health(0).overruns.missed, 3);
+            assert_eq!(h.health(1).overruns.missed, 1, "slow was due in frame 2");
+            assert_eq!(
+                h.health(2).overruns.missed,
+                2,
+                "odd was due in frames 1 and 3"
+            );
+            assert_eq!(h.health(0).releases, 5);
+            assert_eq!(h.exec.health().frames.missed, 3);
+            assert_eq!(h.exec.next_release_ns(), 50 * MS);
+        },
     );
-    assert_eq!(r.ran, 0b011, "frame 4 releases fast and slow");
-    assert_eq!(h.health(0).overruns.missed, 3);
-    assert_eq!(h.health(1).overruns.missed, 1, "slow was due in frame 2");
-    assert_eq!(
-        h.health(2).overruns.missed,
-        2,
-        "odd was due in frames 1 and 3"
-    );
-    assert_eq!(h.health(0).releases, 5);
-    assert_eq!(h.exec.health().frames.missed, 3);
-    assert_eq!(h.exec.next_release_ns(), 50 * MS);
 }
 
 #[test]
 fn a_failing_step_is_counted_and_reset() {
-    let clock = MockClock::default();
-    let journal = Journal::default();
-    let mut scripted = three(&clock, &journal, [cheap, cheap, cheap]);
-    scripted[0].fail_step_in_frame = Some(1);
-    let mut tasks = scripted.each_mut().map(|t| t as &mut dyn Task);
-    let mut h = Harness::new(&clock);
-    h.exec.start(&mut tasks, 0).expect("start");
-    for _ in 0..3 {
-        h.frame(&mut tasks, 0);
-    }
-    assert!(h.exec.health().alive(0));
-    let fast = h.health(0);
-    assert_eq!((fast.faults, fast.resets), (1, 1));
-    assert_eq!(fast.last_fault, Some("checksum storm"));
-    assert!(h.records.0[2].reset & 1 == 1);
+    started(
+        [cheap; 3],
+        |[fast, ..]| fast.fail_step_in_frame = Some(1),
+        |h, tasks, _| {
+            for _ in 0..3 {
+                h.frame(tasks, 0);
+            }
+            assert!(h.exec.health().alive(0));
+            let fast = h.health(0);
+            assert_eq!((fast.faults, fast.resets), (1, 1));
+            assert_eq!(fast.last_fault, Some("checksum storm"));
+            assert!(h.records.0[2].reset & 1 == 1);
+        },
+    );
 }
 
 #[test]
 fn failed_init_is_retried_at_each_release_and_the_task_is_not_stepped_meanwhile() {
-    let clock = MockClock::default();
-    let journal = Journal::default();
-    let mut scripted = three(&clock, &journal, [cheap, cheap, cheap]);
-    scripted[0].fail_init_times = 2;
-    let mut tasks = scripted.each_mut().map(|t| t as &mut dyn Task);
-    let mut h = Harness::new(&clock);
-    h.exec.start(&mut tasks, 0).expect("start");
-    assert!(!h.health(0).initialised);
-    let r0 = h.frame(&mut tasks, 0);
-    assert_eq!(r0.ran & 1, 0);
-    assert!(!h.exec.health().alive(0));
-    let r1 = h.frame(&mut tasks, 0);
-    assert_eq!(r1.ran & 1, 1);
-    let fast = h.health(0);
-    assert_eq!((fast.init_failures, fast.exec.count), (2, 1));
-    assert!(fast.initialised);
-    assert_eq!(fast.last_fault, Some("device absent"));
+    started(
+        [cheap; 3],
+        |[fast, ..]| fast.fail_init_times = 2,
+        |h, tasks, _| {
+            assert!(!h.health(0).initialised);
+            let r0 = h.frame(tasks, 0);
+            assert_eq!(r0.ran & 1, 0);
+            assert!(!h.exec.health().alive(0));
+            let r1 = h.frame(tasks, 0);
+            assert_eq!(r1.ran & 1, 1);
+            let fast = h.health(0);
+            assert_eq!((fast.init_failures, fast.exec.count), (2, 1));
+            assert!(fast.initialised);
+            assert_eq!(fast.last_fault, Some("device absent"));
+        },
+    );
 }
 
 #[test]

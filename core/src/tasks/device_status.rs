@@ -4,7 +4,7 @@
 
 use super::task_log::TaskLog;
 use crate::devices::{Decoder, DecoderStats};
-use crate::executive::TaskContext;
+use crate::executive::{TaskContext, TaskFault};
 use crate::logfmt::RecordSink;
 use crate::logfmt::record::EncodeError;
 
@@ -51,17 +51,21 @@ impl DeviceStatusLog {
     }
 
     /// The end of every step: the task is degraded while its device is stale, and the
-    /// counters go into the log once a second.
-    pub fn after_step<S: RecordSink, D: Decoder>(
+    /// counters go into the log once a second. The step fails with `port_fault` when draining
+    /// its port failed (`drained`), after the counters are in.
+    pub fn after_step<S: RecordSink, D: Decoder, T, E>(
         &mut self,
         log: &mut TaskLog<S>,
         cx: &TaskContext<'_>,
         decoder: &D,
-    ) {
+        drained: Result<T, E>,
+        port_fault: &'static str,
+    ) -> Result<(), TaskFault> {
         let stale = decoder.is_stale(cx.now_ns);
         cx.health
             .set_degraded(cx.task, stale.then_some(DEVICE_STALE));
         self.maybe_log(log, cx, decoder.stats(), stale, false);
+        drained.map(|_| ()).map_err(|_| TaskFault::new(port_fault))
     }
 
     /// Closes a logging section (recover, shutdown): the counters as they stand, then End

@@ -124,10 +124,8 @@ impl<P: Read + ReadReady, S: RecordSink> Task for GpsTask<'_, P, S> {
                 log.log(cx, FIX_INDEX, &record);
             },
         );
-        self.status.after_step(&mut self.log, cx, &self.decoder);
-        drained
-            .map(|_| ())
-            .map_err(|_| TaskFault::new("gps port error"))
+        self.status
+            .after_step(&mut self.log, cx, &self.decoder, drained, "gps port error")
     }
 
     fn recover(&mut self, cx: &mut TaskContext<'_>) {

@@ -143,10 +143,8 @@ impl<P: Read + ReadReady, S: RecordSink> Task for ImuTask<'_, P, S> {
                 }
             },
         );
-        self.status.after_step(&mut self.log, cx, &self.decoder);
-        drained
-            .map(|_| ())
-            .map_err(|_| TaskFault::new("imu port error"))
+        self.status
+            .after_step(&mut self.log, cx, &self.decoder, drained, "imu port error")
     }
 
     /// The decoder resynchronises by itself and its counters must survive a reset, so

@@ -236,10 +236,13 @@ where
                 log.log(cx, PILOT_INDEX, &record);
             },
         );
-        self.status.after_step(&mut self.log, cx, &self.decoder);
-        drained
-            .map(|_| ())
-            .map_err(|_| TaskFault::new("servo port error"))
+        self.status.after_step(
+            &mut self.log,
+            cx,
+            &self.decoder,
+            drained,
+            "servo port error",
+        )
     }
 
     fn recover(&mut self, cx: &mut TaskContext<'_>) {
