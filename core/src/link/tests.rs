@@ -193,15 +193,7 @@ fn worked_examples_decode() {
         assert_eq!(decoded, message);
     }
     // The vehicle's gate accepts the example command.
-    let mut params = ParamTable::new();
-    params
-        .define(
-            "roll_gain",
-            Value::F32(0.5),
-            Value::F32(0.0),
-            Value::F32(2.0),
-        )
-        .expect("define");
+    let params = test_params();
     let mut gate = gate();
     let accepted = gate
         .accept(&hex(EXAMPLE_SET_PARAM), 0, &params)
@@ -540,7 +532,7 @@ proptest! {
         payload in proptest::collection::vec(any::<u8>(), 0..64),
     ) {
         let key = example_key();
-        let e = Envelope { vehicle_id: VEHICLE, sender_id: GROUND, run_id: RUN, sequence: 1, t_ns: 0 };
+        let e = ground_envelope(1, 0);
         let d = raw_datagram(message_type, 1, &e, &payload, Some(&key));
         let _ = decode_datagram(&d, Verify::Required(&key));
         let mut gate = gate();
@@ -562,7 +554,7 @@ proptest! {
         flip in 1u8..=255,
     ) {
         let key = example_key();
-        let e = Envelope { vehicle_id: VEHICLE, sender_id: GROUND, run_id: RUN, sequence: 5, t_ns: 0 };
+        let e = ground_envelope(5, 0);
         let mut d = encode(&e, &Message::Command(command), Some(&key));
         let i = position.index(d.len());
         d[i] ^= flip;
@@ -670,17 +662,25 @@ fn gate() -> CommandGate {
     )
 }
 
+/// The ground station's envelope for this vehicle and run.
+fn ground_envelope(sequence: u32, t_ns: u64) -> Envelope {
+    Envelope {
+        vehicle_id: VEHICLE,
+        sender_id: GROUND,
+        run_id: RUN,
+        sequence,
+        t_ns,
+    }
+}
+
 fn command(sequence: u32, command: Command) -> StdVec<u8> {
     command_from(GROUND, sequence, command)
 }
 
 fn command_from(sender_id: u8, sequence: u32, command: Command) -> StdVec<u8> {
     let e = Envelope {
-        vehicle_id: VEHICLE,
         sender_id,
-        run_id: RUN,
-        sequence,
-        t_ns: 1_000,
+        ..ground_envelope(sequence, 1_000)
     };
     encode(&e, &Message::Command(command), Some(&example_key()))
 }
@@ -738,17 +738,18 @@ fn assert_rejected(datagrams: &[StdVec<u8>], reason: RejectReason) -> Option<Com
     rejected.ack
 }
 
+fn telemetry_rate(task_index: u8, interval_ms: u32) -> Command {
+    Command::SetTelemetryRate {
+        task_index,
+        interval_ms,
+    }
+}
+
 #[test]
 fn every_command_in_range_is_accepted() {
     let commands = [
-        Command::SetTelemetryRate {
-            task_index: 7,
-            interval_ms: 50,
-        },
-        Command::SetTelemetryRate {
-            task_index: 0,
-            interval_ms: 0,
-        },
+        telemetry_rate(7, 50),
+        telemetry_rate(0, 0),
         Command::SetHealthPeriod { period_ms: 100 },
         Command::SetHealthPeriod { period_ms: 60_000 },
         Command::SetParam {
@@ -840,13 +841,7 @@ fn rejects_bad_crc() {
 #[test]
 fn rejects_malformed_datagrams() {
     let key = example_key();
-    let e = Envelope {
-        vehicle_id: VEHICLE,
-        sender_id: GROUND,
-        run_id: RUN,
-        sequence: 1,
-        t_ns: 0,
-    };
+    let e = ground_envelope(1, 0);
     let stop = message_type::STOP;
     let cases: [StdVec<u8>; 10] = [
         // Empty, and shorter than a header and a CRC.
@@ -889,10 +884,7 @@ fn rejects_malformed_datagrams() {
 fn rejects_another_vehicles_commands() {
     let e = Envelope {
         vehicle_id: VEHICLE + 1,
-        sender_id: GROUND,
-        run_id: RUN,
-        sequence: 1,
-        t_ns: 0,
+        ..ground_envelope(1, 0)
     };
     let d = encode(&e, &Message::Command(Command::Stop), Some(&example_key()));
     assert_rejected(&[d], RejectReason::WrongVehicle);
@@ -900,26 +892,14 @@ fn rejects_another_vehicles_commands() {
 
 #[test]
 fn rejects_unsigned_commands() {
-    let e = Envelope {
-        vehicle_id: VEHICLE,
-        sender_id: GROUND,
-        run_id: RUN,
-        sequence: 1,
-        t_ns: 0,
-    };
+    let e = ground_envelope(1, 0);
     let d = encode(&e, &Message::Command(Command::Stop), None);
     assert_rejected(&[d], RejectReason::Unsigned);
 }
 
 #[test]
 fn rejects_commands_signed_with_another_key() {
-    let e = Envelope {
-        vehicle_id: VEHICLE,
-        sender_id: GROUND,
-        run_id: RUN,
-        sequence: 1,
-        t_ns: 0,
-    };
+    let e = ground_envelope(1, 0);
     let other = LinkKey::new([0x55; 32]);
     let d = encode(&e, &Message::Command(Command::Stop), Some(&other));
     assert_rejected(&[d], RejectReason::BadSignature);
@@ -944,11 +924,8 @@ fn rejects_commands_signed_with_another_key() {
 fn rejects_commands_from_another_run() {
     // Authentic, fresh sequence number, but recorded in the vehicle's previous run.
     let e = Envelope {
-        vehicle_id: VEHICLE,
-        sender_id: GROUND,
         run_id: RUN - 1,
-        sequence: 1,
-        t_ns: 0,
+        ..ground_envelope(1, 0)
     };
     let d = encode(&e, &Message::Command(Command::Stop), Some(&example_key()));
     assert_rejected(&[d], RejectReason::WrongRun);
@@ -970,13 +947,7 @@ fn rejects_replays() {
         RejectReason::Replayed,
     );
     // A replayed malformed datagram counts as a replay: its number was spent.
-    let e = Envelope {
-        vehicle_id: VEHICLE,
-        sender_id: GROUND,
-        run_id: RUN,
-        sequence: 3,
-        t_ns: 0,
-    };
+    let e = ground_envelope(3, 0);
     let bad = raw_datagram(message_type::STOP, 1, &e, &[0], Some(&example_key()));
     let (last, counters) = run(&[bad.clone(), bad]);
     assert_eq!(last.map_err(|r| r.reason), Err(RejectReason::Replayed));
@@ -1014,18 +985,9 @@ fn rejects_out_of_range_arguments_with_an_ack() {
         })
     };
     let cases = [
-        Command::SetTelemetryRate {
-            task_index: TASKS as u8,
-            interval_ms: 1000,
-        },
-        Command::SetTelemetryRate {
-            task_index: 0,
-            interval_ms: 49,
-        },
-        Command::SetTelemetryRate {
-            task_index: 0,
-            interval_ms: 3_600_001,
-        },
+        telemetry_rate(TASKS as u8, 1000),
+        telemetry_rate(0, 49),
+        telemetry_rate(0, 3_600_001),
         Command::SetHealthPeriod { period_ms: 99 },
         Command::SetHealthPeriod { period_ms: 60_001 },
         horizon(PI * 1.01, 0.0, 0.5),
@@ -1153,13 +1115,7 @@ fn rejects_parameters_of_the_wrong_type_with_an_ack() {
 
 #[test]
 fn unauthenticated_rejections_get_no_ack() {
-    let e = Envelope {
-        vehicle_id: VEHICLE,
-        sender_id: GROUND,
-        run_id: RUN,
-        sequence: 1,
-        t_ns: 0,
-    };
+    let e = ground_envelope(1, 0);
     let unsigned = encode(&e, &Message::Command(Command::Stop), None);
     assert_eq!(assert_rejected(&[unsigned], RejectReason::Unsigned), None);
     let d = command(1, Command::Stop);

@@ -64,6 +64,14 @@ impl RecordSink for Capture<'_> {
     }
 }
 
+/// The text lines of record `index`, in order.
+fn rows_of(rows: &[(u8, String)], index: u8) -> Vec<&str> {
+    rows.iter()
+        .filter(|(i, _)| *i == index)
+        .map(|(_, t)| t.as_str())
+        .collect()
+}
+
 /// Data blocks as `(index, text)` lines, plus the count of reader problems.
 fn logged(bytes: &[u8]) -> (Vec<(u8, String)>, usize) {
     let mut reader = LogReader::new();
@@ -122,6 +130,41 @@ static EVERY_FRAME: FrameTable = FrameTable {
     utilisation_ppm: 0,
 };
 
+/// Flies `task` alone in every 10 ms frame of a mock clock: started, `script`ed, shut down.
+/// Returns the clock's time at the end.
+fn fly_alone(task: &mut dyn Task, script: impl FnOnce(&mut Alone<'_, '_, '_>)) -> u64 {
+    let clock = SetClock(Cell::new(0));
+    let mut exec = Executive::new(&EVERY_FRAME, &clock);
+    let mut tasks: [&mut dyn Task; 1] = [task];
+    exec.start(&mut tasks, 0).expect("start");
+    script(&mut Alone {
+        clock: &clock,
+        exec: &mut exec,
+        tasks: &mut tasks,
+    });
+    exec.shutdown(&mut tasks);
+    clock.0.get()
+}
+
+/// The flight of [`fly_alone`], for its script.
+struct Alone<'r, 'c, 't> {
+    clock: &'c SetClock,
+    exec: &'r mut Executive<&'c SetClock>,
+    tasks: &'r mut [&'t mut dyn Task; 1],
+}
+
+impl Alone<'_, '_, '_> {
+    fn frames(&mut self, n: u64) {
+        run_frames(self.exec, self.clock, self.tasks, n);
+    }
+    fn degraded(&self) -> Option<&'static str> {
+        self.exec.health().degraded(0)
+    }
+    fn now_ns(&self) -> u64 {
+        self.clock.0.get()
+    }
+}
+
 fn imu_frame(counter: u8, p: f32) -> [u8; IMU_FRAME_LEN] {
     let m = ImuMeasurement {
         rate_radps: [p, -0.2, 0.05],
@@ -146,22 +189,17 @@ fn imu_task_publishes_and_logs_every_sample_and_counts_garbage() {
     let port = RefCell::new(MockPort::default());
     let log = RefCell::new(Vec::new());
     let samples: LatestSlot<ImuSample> = LatestSlot::new();
-    let clock = SetClock(Cell::new(0));
     let mut imu = ImuTask::new(Shared(&port), Capture(&log), 50 * MS, &samples);
-    let mut exec = Executive::new(&EVERY_FRAME, &clock);
-    {
-        let mut tasks: [&mut dyn Task; 1] = [&mut imu];
-        exec.start(&mut tasks, 0).expect("start");
+    fly_alone(&mut imu, |alone| {
         for counter in 0..5u8 {
             let mut p = port.borrow_mut();
             p.received
                 .extend(imu_frame(counter, 0.1 * f32::from(counter)));
             p.received.extend(b"\x00garbage\xa5");
             drop(p);
-            run_frames(&mut exec, &clock, &mut tasks, 1);
+            alone.frames(1);
         }
-        exec.shutdown(&mut tasks);
-    }
+    });
     let last = samples.peek().expect("a sample");
     assert_eq!(last.counter, 4);
     assert!((last.measurement.rate_radps[0] - 0.4).abs() < 1e-3);
@@ -169,21 +207,13 @@ fn imu_task_publishes_and_logs_every_sample_and_counts_garbage() {
     assert_eq!(imu.stats().frames, 5);
     let (rows, problems) = logged(&log.borrow());
     assert_eq!(problems, 0);
-    let fast: Vec<&String> = rows
-        .iter()
-        .filter(|(i, _)| *i == 1)
-        .map(|(_, t)| t)
-        .collect();
+    let fast: Vec<&str> = rows_of(&rows, 1);
     assert_eq!(fast.len(), 5);
     assert_eq!(
         fast[2], "2,0.2000,-0.2000,0.0500,0.0000,0.0000,-9.8050,0",
         "5e-3 m/s² wire steps"
     );
-    let status: Vec<&String> = rows
-        .iter()
-        .filter(|(i, _)| *i == 3)
-        .map(|(_, t)| t)
-        .collect();
+    let status: Vec<&str> = rows_of(&rows, 3);
     assert_eq!(status.len(), 2, "once at the first step, once at shutdown");
     assert!(status[1].starts_with("5,0,"), "{}", status[1]);
 }
@@ -193,35 +223,22 @@ fn imu_task_reports_a_silent_device_stale() {
     let port = RefCell::new(MockPort::default());
     let log = RefCell::new(Vec::new());
     let samples: LatestSlot<ImuSample> = LatestSlot::new();
-    let clock = SetClock(Cell::new(0));
     let mut imu = ImuTask::new(Shared(&port), Capture(&log), 50 * MS, &samples);
-    let mut exec = Executive::new(&EVERY_FRAME, &clock);
-    let fresh_at;
-    {
-        let mut tasks: [&mut dyn Task; 1] = [&mut imu];
-        exec.start(&mut tasks, 0).expect("start");
+    let mut fresh_at = 0;
+    let end_ns = fly_alone(&mut imu, |alone| {
         port.borrow_mut().received.extend(imu_frame(0, 0.0));
-        run_frames(&mut exec, &clock, &mut tasks, 3);
-        fresh_at = clock.0.get();
-        assert_eq!(exec.health().degraded(0), None);
-        run_frames(&mut exec, &clock, &mut tasks, 10);
-        assert_eq!(
-            exec.health().degraded(0),
-            Some("device stale"),
-            "stale within 50 ms"
-        );
+        alone.frames(3);
+        fresh_at = alone.now_ns();
+        assert_eq!(alone.degraded(), None);
+        alone.frames(10);
+        assert_eq!(alone.degraded(), Some("device stale"), "stale within 50 ms");
         port.borrow_mut().received.extend(imu_frame(1, 0.0));
-        run_frames(&mut exec, &clock, &mut tasks, 1);
-        assert_eq!(
-            exec.health().degraded(0),
-            None,
-            "fresh again with the next frame"
-        );
-        run_frames(&mut exec, &clock, &mut tasks, 10);
-        exec.shutdown(&mut tasks);
-    }
+        alone.frames(1);
+        assert_eq!(alone.degraded(), None, "fresh again with the next frame");
+        alone.frames(10);
+    });
     assert!(!imu.is_stale(fresh_at));
-    assert!(imu.is_stale(clock.0.get()));
+    assert!(imu.is_stale(end_ns));
     let (rows, _) = logged(&log.borrow());
     let last_status = rows.iter().rev().find(|(i, _)| *i == 3).expect("status");
     assert!(
@@ -254,30 +271,21 @@ fn gps_task_publishes_each_epoch_and_logs_missing_values_as_nan() {
     let port = RefCell::new(MockPort::default());
     let log = RefCell::new(Vec::new());
     let fixes: LatestSlot<GpsFix> = LatestSlot::new();
-    let clock = SetClock(Cell::new(0));
     let mut gps = GpsTask::new(Shared(&port), Capture(&log), GpsConfig::default(), &fixes);
-    let mut exec = Executive::new(&EVERY_FRAME, &clock);
-    {
-        let mut tasks: [&mut dyn Task; 1] = [&mut gps];
-        exec.start(&mut tasks, 0).expect("start");
+    fly_alone(&mut gps, |alone| {
         for (i, lat) in [42.36, 42.37, 42.38].into_iter().enumerate() {
             let mut bytes = Vec::new();
             gps_epoch(lat, 1000 * i as u32, &mut bytes);
             port.borrow_mut().received.extend(bytes);
-            run_frames(&mut exec, &clock, &mut tasks, 10);
+            alone.frames(10);
         }
-        exec.shutdown(&mut tasks);
-    }
+    });
     // The third epoch ends only when a fourth begins: two are out.
     let fix = fixes.peek().expect("fix");
     assert!((fix.latitude_deg.unwrap_or(0.0) - 42.37).abs() < 1e-6);
     let (rows, problems) = logged(&log.borrow());
     assert_eq!(problems, 0);
-    let logged_fixes: Vec<&String> = rows
-        .iter()
-        .filter(|(i, _)| *i == 1)
-        .map(|(_, t)| t)
-        .collect();
+    let logged_fixes: Vec<&str> = rows_of(&rows, 1);
     assert_eq!(logged_fixes.len(), 2);
     assert!(
         logged_fixes[0].starts_with("1,1,9,42.36000000,-71.09000000,120.500,"),
@@ -313,16 +321,12 @@ fn servo_task_sends_commands_first_then_reads_the_pilot() {
     let log = RefCell::new(Vec::new());
     let commands: LatestSlot<ComputerCommand> = LatestSlot::new();
     let pilot: LatestSlot<PilotInput> = LatestSlot::new();
-    let clock = SetClock(Cell::new(0));
     let mut servo = ServoTask::new(Shared(&port), Capture(&log), 100 * MS, &commands, &pilot);
-    let mut exec = Executive::new(&EVERY_FRAME, &clock);
-    {
-        let mut tasks: [&mut dyn Task; 1] = [&mut servo];
-        exec.start(&mut tasks, 0).expect("start");
+    fly_alone(&mut servo, |alone| {
         port.borrow_mut()
             .received
             .extend(pilot_frame(7, 1900, 1000));
-        run_frames(&mut exec, &clock, &mut tasks, 1);
+        alone.frames(1);
         commands.publish(ComputerCommand {
             controls: Controls {
                 aileron: 0.5,
@@ -335,9 +339,8 @@ fn servo_task_sends_commands_first_then_reads_the_pilot() {
         port.borrow_mut()
             .received
             .extend(pilot_frame(8, 1900, 2000));
-        run_frames(&mut exec, &clock, &mut tasks, 1);
-        exec.shutdown(&mut tasks);
-    }
+        alone.frames(1);
+    });
     let input = pilot.peek().expect("pilot");
     assert_eq!(input.report.switch_us, 2000);
     assert_eq!(input.mode, crate::devices::servo::ControlMode::Auto);
@@ -360,11 +363,7 @@ fn servo_task_sends_commands_first_then_reads_the_pilot() {
     );
     let (rows, problems) = logged(&log.borrow());
     assert_eq!(problems, 0);
-    let pilots: Vec<&String> = rows
-        .iter()
-        .filter(|(i, _)| *i == 1)
-        .map(|(_, t)| t)
-        .collect();
+    let pilots: Vec<&str> = rows_of(&rows, 1);
     assert_eq!(pilots.len(), 2);
     assert!(
         pilots[1].starts_with("8,1900,1500,1100,1500,1500,1500,1500,1500,1,0.800,"),
@@ -372,10 +371,6 @@ fn servo_task_sends_commands_first_then_reads_the_pilot() {
         pilots[1]
     );
     assert!(pilots[1].ends_with(",11.900,4.950"), "{}", pilots[1]);
-    let sent_log: Vec<&String> = rows
-        .iter()
-        .filter(|(i, _)| *i == 2)
-        .map(|(_, t)| t)
-        .collect();
+    let sent_log: Vec<&str> = rows_of(&rows, 2);
     assert_eq!(sent_log[1], "1,0.500,-0.250,0.750,0.000");
 }
