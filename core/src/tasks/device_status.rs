@@ -40,13 +40,21 @@ impl DeviceStatusLog {
         Self { index, next_ns: 0 }
     }
 
-    pub fn declare<S: RecordSink>(
+    /// Opens a logging section (the task's init): the task's own records
+    /// (`declare_records`), the status record, then Begin Data. A record that cannot be
+    /// declared fails the init with `log_format_fault`.
+    pub fn open<S: RecordSink>(
         &mut self,
         log: &mut TaskLog<S>,
         cx: &TaskContext<'_>,
-    ) -> Result<(), EncodeError> {
-        log.declare::<DeviceStatusRecord>(cx, self.index)?;
+        log_format_fault: &'static str,
+        declare_records: impl FnOnce(&mut TaskLog<S>) -> Result<(), EncodeError>,
+    ) -> Result<(), TaskFault> {
+        declare_records(log)
+            .and_then(|()| log.declare::<DeviceStatusRecord>(cx, self.index))
+            .map_err(|_| TaskFault::new(log_format_fault))?;
         self.next_ns = cx.now_ns;
+        log.begin(cx);
         Ok(())
     }
 

@@ -208,29 +208,63 @@ fn healthy_estimate(t_ns: u64, healthy: bool) -> Estimate {
     e
 }
 
+/// What a control task is built on: its input and output slots, the parameter table with
+/// the `control.*` parameters defined, a health board and its log's bytes.
+struct ControlBench {
+    estimate: LatestSlot<Estimate>,
+    pilot_slot: LatestSlot<PilotInput>,
+    requested: LatestSlot<FlightMode>,
+    out: LatestSlot<ComputerCommand>,
+    params: RefCell<ParamTable>,
+    health: HealthBoard,
+    bytes: RefCell<Vec<u8>>,
+}
+
+impl ControlBench {
+    fn new() -> Self {
+        let mut table = ParamTable::new();
+        define_params(&mut table, &ControlSettings::default()).expect("fits");
+        Self {
+            estimate: LatestSlot::new(),
+            pilot_slot: LatestSlot::new(),
+            requested: LatestSlot::new(),
+            out: LatestSlot::new(),
+            params: RefCell::new(table),
+            health: HealthBoard::new(1),
+            bytes: RefCell::new(Vec::new()),
+        }
+    }
+
+    /// The task with the default settings, initialised at time 0.
+    fn task<'a>(&'a self, mission: Option<&'a Mission>) -> ControlTask<'a, Capture<'a>> {
+        let mut task = ControlTask::new(
+            ControlSettings::default(),
+            Capture(&self.bytes),
+            &self.estimate,
+            &self.pilot_slot,
+            &self.requested,
+            mission,
+            &self.params,
+            &self.out,
+        );
+        task.init(&mut cx(&self.health, 0)).expect("init");
+        task
+    }
+}
+
 #[test]
 fn control_task_modes_gains_and_logs() {
-    let estimate = LatestSlot::new();
-    let pilot_slot = LatestSlot::new();
-    let requested = LatestSlot::new();
-    let out = LatestSlot::<ComputerCommand>::new();
-    let mut table = ParamTable::new();
-    let defaults = ControlSettings::default();
-    define_params(&mut table, &defaults).expect("fits");
-    let params = RefCell::new(table);
-    let bytes = RefCell::new(Vec::new());
-    let health = HealthBoard::new(1);
-    let mut task = ControlTask::new(
-        defaults,
-        Capture(&bytes),
-        &estimate,
-        &pilot_slot,
-        &requested,
-        None,
-        &params,
-        &out,
-    );
-    task.init(&mut cx(&health, 0)).expect("init");
+    let bench = ControlBench::new();
+    let ControlBench {
+        estimate,
+        pilot_slot,
+        requested,
+        out,
+        params,
+        health,
+        bytes,
+    } = &bench;
+    let mut task = bench.task(None);
     let clock = core::cell::Cell::new(0u64);
     let step = |task: &mut ControlTask<'_, Capture<'_>>| {
         clock.set(clock.get() + 20 * MS);
@@ -321,13 +355,7 @@ fn control_task_modes_gains_and_logs() {
 
 #[test]
 fn control_task_flies_the_mission_in_auto() {
-    let estimate = LatestSlot::new();
-    let pilot_slot = LatestSlot::new();
-    let requested = LatestSlot::new();
-    let out = LatestSlot::<ComputerCommand>::new();
-    let mut table = ParamTable::new();
-    define_params(&mut table, &ControlSettings::default()).expect("fits");
-    let params = RefCell::new(table);
+    let bench = ControlBench::new();
     let mission = Mission::new(&[Waypoint {
         north_m: 0.0,
         east_m: 1000.0,
@@ -335,19 +363,14 @@ fn control_task_flies_the_mission_in_auto() {
         airspeed_mps: 22.0,
     }])
     .expect("fits");
-    let health = HealthBoard::new(1);
-    let bytes = RefCell::new(Vec::new());
-    let mut task = ControlTask::new(
-        ControlSettings::default(),
-        Capture(&bytes),
-        &estimate,
-        &pilot_slot,
-        &requested,
-        Some(&mission),
-        &params,
-        &out,
-    );
-    task.init(&mut cx(&health, 0)).expect("init");
+    let ControlBench {
+        estimate,
+        pilot_slot,
+        requested,
+        health,
+        ..
+    } = &bench;
+    let mut task = bench.task(Some(&mission));
     requested.publish(FlightMode::Auto);
     pilot_slot.publish(pilot(ControlMode::Auto, 1500, 20 * MS));
     estimate.publish(healthy_estimate(20 * MS, true));
@@ -370,13 +393,7 @@ fn control_task_flies_the_mission_in_auto() {
 #[test]
 fn control_task_flies_a_mission_put_in_force_in_flight() {
     use crate::control::mission_store::MissionStore;
-    let estimate = LatestSlot::new();
-    let pilot_slot = LatestSlot::new();
-    let requested = LatestSlot::new();
-    let out = LatestSlot::<ComputerCommand>::new();
-    let mut table = ParamTable::new();
-    define_params(&mut table, &ControlSettings::default()).expect("fits");
-    let params = RefCell::new(table);
+    let bench = ControlBench::new();
     let wp = |n: f32, e: f32, alt: f32, v: f32| Waypoint {
         north_m: n,
         east_m: e,
@@ -385,20 +402,14 @@ fn control_task_flies_a_mission_put_in_force_in_flight() {
     };
     let first = Mission::new(&[wp(0.0, 1000.0, 120.0, 22.0)]).expect("fits");
     let store = RefCell::new(MissionStore::new(Some(&first)));
-    let health = HealthBoard::new(1);
-    let bytes = RefCell::new(Vec::new());
-    let mut task = ControlTask::new(
-        ControlSettings::default(),
-        Capture(&bytes),
-        &estimate,
-        &pilot_slot,
-        &requested,
-        None,
-        &params,
-        &out,
-    )
-    .flying_missions_from(&store);
-    task.init(&mut cx(&health, 0)).expect("init");
+    let ControlBench {
+        estimate,
+        pilot_slot,
+        requested,
+        health,
+        ..
+    } = &bench;
+    let mut task = bench.task(None).flying_missions_from(&store);
     requested.publish(FlightMode::Auto);
     let mut t = 0;
     let mut step = |task: &mut ControlTask<'_, Capture<'_>>| {

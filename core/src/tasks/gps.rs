@@ -78,11 +78,10 @@ fn or_nan64(v: Option<f64>) -> f64 {
 
 impl<P: Read + ReadReady, S: RecordSink> Task for GpsTask<'_, P, S> {
     fn init(&mut self, cx: &mut TaskContext<'_>) -> Result<(), TaskFault> {
-        let bad = |_| TaskFault::new("gps log format");
-        self.log.declare::<GpsFixLog>(cx, FIX_INDEX).map_err(bad)?;
-        self.status.declare(&mut self.log, cx).map_err(bad)?;
-        self.log.begin(cx);
-        Ok(())
+        self.status
+            .open(&mut self.log, cx, "gps log format", |log| {
+                log.declare::<GpsFixLog>(cx, FIX_INDEX)
+            })
     }
 
     fn step(&mut self, cx: &mut TaskContext<'_>) -> Result<(), TaskFault> {

@@ -78,16 +78,11 @@ impl<'a, P: Read + ReadReady, S: RecordSink> ImuTask<'a, P, S> {
 
 impl<P: Read + ReadReady, S: RecordSink> Task for ImuTask<'_, P, S> {
     fn init(&mut self, cx: &mut TaskContext<'_>) -> Result<(), TaskFault> {
-        let bad = |_| TaskFault::new("imu log format");
-        self.log
-            .declare::<ImuFastLog>(cx, FAST_INDEX)
-            .map_err(bad)?;
-        self.log
-            .declare::<ImuSlowLog>(cx, SLOW_INDEX)
-            .map_err(bad)?;
-        self.status.declare(&mut self.log, cx).map_err(bad)?;
-        self.log.begin(cx);
-        Ok(())
+        self.status
+            .open(&mut self.log, cx, "imu log format", |log| {
+                log.declare::<ImuFastLog>(cx, FAST_INDEX)?;
+                log.declare::<ImuSlowLog>(cx, SLOW_INDEX)
+            })
     }
 
     fn step(&mut self, cx: &mut TaskContext<'_>) -> Result<(), TaskFault> {

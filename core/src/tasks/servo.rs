@@ -174,16 +174,11 @@ where
     S: RecordSink,
 {
     fn init(&mut self, cx: &mut TaskContext<'_>) -> Result<(), TaskFault> {
-        let bad = |_| TaskFault::new("servo log format");
-        self.log
-            .declare::<ServoPilotLog>(cx, PILOT_INDEX)
-            .map_err(bad)?;
-        self.log
-            .declare::<ServoCommandLog>(cx, COMMAND_INDEX)
-            .map_err(bad)?;
-        self.status.declare(&mut self.log, cx).map_err(bad)?;
-        self.log.begin(cx);
-        Ok(())
+        self.status
+            .open(&mut self.log, cx, "servo log format", |log| {
+                log.declare::<ServoPilotLog>(cx, PILOT_INDEX)?;
+                log.declare::<ServoCommandLog>(cx, COMMAND_INDEX)
+            })
     }
 
     fn step(&mut self, cx: &mut TaskContext<'_>) -> Result<(), TaskFault> {
