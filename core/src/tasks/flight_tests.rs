@@ -363,18 +363,13 @@ fn control_task_flies_the_mission_in_auto() {
         airspeed_mps: 22.0,
     }])
     .expect("fits");
-    let ControlBench {
-        estimate,
-        pilot_slot,
-        requested,
-        health,
-        ..
-    } = &bench;
     let mut task = bench.task(Some(&mission));
-    requested.publish(FlightMode::Auto);
-    pilot_slot.publish(pilot(ControlMode::Auto, 1500, 20 * MS));
-    estimate.publish(healthy_estimate(20 * MS, true));
-    task.step(&mut cx(&health, 20 * MS)).expect("step");
+    bench.requested.publish(FlightMode::Auto);
+    bench
+        .pilot_slot
+        .publish(pilot(ControlMode::Auto, 1500, 20 * MS));
+    bench.estimate.publish(healthy_estimate(20 * MS, true));
+    task.step(&mut cx(&bench.health, 20 * MS)).expect("step");
     let s = *task.last_step().expect("ran");
     assert_eq!(
         (s.decision.mode, s.decision.reason, s.waypoint),
@@ -402,21 +397,14 @@ fn control_task_flies_a_mission_put_in_force_in_flight() {
     };
     let first = Mission::new(&[wp(0.0, 1000.0, 120.0, 22.0)]).expect("fits");
     let store = RefCell::new(MissionStore::new(Some(&first)));
-    let ControlBench {
-        estimate,
-        pilot_slot,
-        requested,
-        health,
-        ..
-    } = &bench;
     let mut task = bench.task(None).flying_missions_from(&store);
-    requested.publish(FlightMode::Auto);
+    bench.requested.publish(FlightMode::Auto);
     let mut t = 0;
     let mut step = |task: &mut ControlTask<'_, Capture<'_>>| {
         t += 20 * MS;
-        pilot_slot.publish(pilot(ControlMode::Auto, 1500, t));
-        estimate.publish(healthy_estimate(t, true));
-        task.step(&mut cx(&health, t)).expect("step");
+        bench.pilot_slot.publish(pilot(ControlMode::Auto, 1500, t));
+        bench.estimate.publish(healthy_estimate(t, true));
+        task.step(&mut cx(&bench.health, t)).expect("step");
         *task.last_step().expect("ran")
     };
     // The store's mission at start: east, 120 m, 22 m/s.
