@@ -153,14 +153,9 @@ pub struct DeviceReport {
     pub bytes_in: u64,
     pub bytes_out: u64,
     pub bytes_dropped: u64,
-    pub frames: u32,
-    pub bad_checksum: u32,
-    pub framing_errors: u32,
-    pub overflows: u32,
-    pub bytes_discarded: u32,
-    pub invalid_payload: u32,
-    pub sequence_gaps: u32,
-    pub stale_events: u32,
+    /// The decoder's counters, as fields of the device's own.
+    #[serde(flatten)]
+    pub decoder: DecoderStats,
 }
 
 #[derive(Debug, Serialize)]
@@ -737,14 +732,7 @@ fn device_report(
         bytes_in: counter(|s| s.bytes_in.load(Ordering::Relaxed)),
         bytes_out: counter(|s| s.bytes_out.load(Ordering::Relaxed)),
         bytes_dropped: counter(|s| s.bytes_dropped.load(Ordering::Relaxed)),
-        frames: stats.frames,
-        bad_checksum: stats.bad_checksum,
-        framing_errors: stats.framing_errors,
-        overflows: stats.overflows,
-        bytes_discarded: stats.bytes_discarded,
-        invalid_payload: stats.invalid_payload,
-        sequence_gaps: stats.sequence_gaps,
-        stale_events: stats.stale_events,
+        decoder: *stats,
     }
 }
 
@@ -763,11 +751,11 @@ pub fn render_flight(report: &FlightReport) -> String {
             d.bytes_in,
             d.bytes_out,
             d.bytes_dropped,
-            d.frames,
-            d.bad_checksum,
-            d.framing_errors,
-            d.overflows,
-            d.stale_events,
+            d.decoder.frames,
+            d.decoder.bad_checksum,
+            d.decoder.framing_errors,
+            d.decoder.overflows,
+            d.decoder.stale_events,
         );
     }
     if let Some(m) = &report.mavlink {

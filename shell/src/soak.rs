@@ -188,7 +188,7 @@ pub fn counter_checks(
             .devices
             .iter()
             .find(|d| d.name == device)
-            .map_or(0, |d| u64::from(d.stale_events));
+            .map_or(0, |d| u64::from(d.decoder.stale_events));
         checks.push(check(
             &format!("{device} went stale once per silence"),
             stale == expected,

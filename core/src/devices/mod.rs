@@ -39,6 +39,7 @@ pub mod servo;
 /// a ground station comparing two readings never sees a count go backwards.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(feature = "serde", derive(serde::Serialize))]
 pub struct DecoderStats {
     /// Frames (sentences) that passed every check and were used.
     pub frames: u32,
