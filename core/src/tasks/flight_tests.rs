@@ -268,7 +268,7 @@ fn control_task_modes_gains_and_logs() {
     let clock = core::cell::Cell::new(0u64);
     let step = |task: &mut ControlTask<'_, Capture<'_>>| {
         clock.set(clock.get() + 20 * MS);
-        task.step(&mut cx(&health, clock.get())).expect("step");
+        task.step(&mut cx(health, clock.get())).expect("step");
         (
             out.peek().expect("published"),
             *task.last_step().expect("ran"),
@@ -342,7 +342,7 @@ fn control_task_modes_gains_and_logs() {
         step(&mut task);
     }
     assert_eq!(task.settings().gains.roll.kp, 2.5);
-    task.shutdown(&mut cx(&health, 10_000 * MS));
+    task.shutdown(&mut cx(health, 10_000 * MS));
     assert_eq!(out.peek(), Some(ComputerCommand::default()));
 
     let (indices, problems) = blocks(&bytes.borrow());
