@@ -30,6 +30,9 @@ fn the_autopilot_flies_the_auto_circuit_on_jsbsims_c172x() {
             mission.to_str().expect("utf-8"),
             "--score",
             "--no-reference-filters",
+            // Not the scenario's seed 5, on which the 172's roll gain was chosen.
+            "--seed",
+            "8",
         ],
     );
     assert!(
@@ -51,9 +54,7 @@ fn the_autopilot_flies_the_auto_circuit_on_jsbsims_c172x() {
     assert!(figure("control", "auto_s") > 200.0, "{score}");
     assert!(figure("control", "altitude_hold_rms_m") <= 5.0, "{score}");
     assert!(figure("control", "altitude_hold_s") > 120.0, "{score}");
-    // The issue asks 5 deg; with the Aerosonde's gains the 172 overshoots its roll-outs and
-    // holds 5.3-5.7 deg (docs/plants.md). This bound keeps what it flies now from getting worse.
-    assert!(figure("control", "heading_hold_rms_deg") <= 6.0, "{score}");
+    assert!(figure("control", "heading_hold_rms_deg") <= 5.0, "{score}");
     assert!(figure("control", "heading_hold_s") > 60.0, "{score}");
 }
 
