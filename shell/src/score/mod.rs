@@ -253,10 +253,17 @@ fn score_logs(setup: &ScoreSetup<'_>) -> Result<Score, String> {
     let (window, attitude, position_error) =
         score_estimates(estimator, &truth, &frame, &truth_origin)?;
     let position = score_gps(&fixes, &truth, &truth_origin, window, position_error);
-    let bank_limit = match logs.control.table(2) {
-        Some(gains) => BankLimit::new(&gains.times_ns, column(gains, "control", "max_bank_deg")?),
-        None => BankLimit::new(&[], &[]),
-    };
+    // Flights logged before the gains record carried the bank limit: the default.
+    let bank_limit = logs
+        .control
+        .table(2)
+        .and_then(|gains| {
+            Some(BankLimit::new(
+                &gains.times_ns,
+                gains.column("max_bank_deg")?,
+            ))
+        })
+        .unwrap_or_else(|| BankLimit::new(&[], &[]));
     let control = score_control(
         table(&logs.control, "control")?,
         &bank_limit,
