@@ -30,6 +30,9 @@ fn the_autopilot_flies_the_auto_circuit_on_jsbsims_c172x() {
             mission.to_str().expect("utf-8"),
             "--score",
             "--no-reference-filters",
+            // Not the scenario's seed 5, on which the 172's roll gain was chosen.
+            "--seed",
+            "8",
         ],
     );
     assert!(
@@ -51,9 +54,7 @@ fn the_autopilot_flies_the_auto_circuit_on_jsbsims_c172x() {
     assert!(figure("control", "auto_s") > 200.0, "{score}");
     assert!(figure("control", "altitude_hold_rms_m") <= 5.0, "{score}");
     assert!(figure("control", "altitude_hold_s") > 120.0, "{score}");
-    // The issue asks 5 deg; with the Aerosonde's gains the 172 overshoots its roll-outs and
-    // holds 5.3-5.7 deg (docs/plants.md). This bound keeps what it flies now from getting worse.
-    assert!(figure("control", "heading_hold_rms_deg") <= 6.0, "{score}");
+    assert!(figure("control", "heading_hold_rms_deg") <= 5.0, "{score}");
     assert!(figure("control", "heading_hold_s") > 60.0, "{score}");
 }
 
@@ -116,7 +117,7 @@ fn a_jsbsim_flight_is_deterministic_and_on_the_truth_log() {
 }
 
 #[test]
-fn jsbsim_dying_mid_flight_ends_the_run_in_one_line() {
+fn jsbsim_dying_mid_flight_stops_the_flight_with_its_logs_closed() {
     let dir = scratch("jsbsim-dies");
     // A python3 that runs the real driver and kills it two seconds in.
     let python = dir.join("python-dies");
@@ -152,6 +153,34 @@ fn jsbsim_dying_mid_flight_ends_the_run_in_one_line() {
         stderr.contains("the simulated airplane stopped: jsbsim:"),
         "{stderr}"
     );
-    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
     assert!(started.elapsed().as_secs() < 60, "no hang");
+    // Stopped as a signal would stop it: every log closed with its final End Data.
+    let flight = std::fs::read_dir(&dir)
+        .expect("scratch dir")
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .find(|p| p.join("truth.bin").is_file())
+        .expect("a flight directory");
+    let logs: Vec<_> = std::fs::read_dir(&flight)
+        .expect("flight dir")
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|x| x == "bin"))
+        .collect();
+    assert!(logs.len() >= 8, "{logs:?}");
+    let info = std::process::Command::new(skyframe_tests::binary("skyframe-log", "skyframe-log"))
+        .arg("info")
+        .args(&logs)
+        .output()
+        .expect("skyframe-log runs");
+    let text = String::from_utf8_lossy(&info.stdout);
+    assert!(
+        info.status.success(),
+        "{text}{}",
+        String::from_utf8_lossy(&info.stderr)
+    );
+    assert_eq!(
+        text.matches("closed cleanly: yes").count(),
+        logs.len(),
+        "{text}"
+    );
 }

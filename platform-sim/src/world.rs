@@ -125,6 +125,9 @@ pub struct WorldStats {
 /// The airplane whichever flight model flies it.
 pub type AnyPlant = Plant<Box<dyn FlightModel>>;
 
+/// Told once when the airplane is lost mid-flight (JSBSim's process died or talks garbage).
+pub type FailureHook = Box<dyn FnMut(&PlantError) + Send>;
+
 pub struct SimWorld {
     plant: AnyPlant,
     transmitter: Box<dyn Transmitter + Send>,
@@ -141,6 +144,9 @@ pub struct SimWorld {
     faults: DeviceFaults,
     garbage_state: u32,
     stats: WorldStats,
+    /// Why the airplane was lost; from then on the world stands still.
+    failure: Option<PlantError>,
+    on_failure: Option<FailureHook>,
 }
 
 impl SimWorld {
@@ -165,7 +171,20 @@ impl SimWorld {
             faults: DeviceFaults::default(),
             garbage_state: 0x9E37_79B9,
             stats: WorldStats::default(),
+            failure: None,
+            on_failure: None,
         }
+    }
+
+    /// `hook` is told when the airplane is lost mid-flight, so whoever runs the flight can
+    /// stop it (logs closed) and report the plant's error.
+    pub fn on_failure(&mut self, hook: FailureHook) {
+        self.on_failure = Some(hook);
+    }
+
+    /// Why the airplane was lost, if it was: the world stopped at that time.
+    pub fn failure(&self) -> Option<&PlantError> {
+        self.failure.as_ref()
     }
 
     /// The world of a scenario: its airplane (on the scenario's plant), wind, GPS, pilot and
@@ -265,10 +284,12 @@ impl SimWorld {
         self.fault_period_s.map_or(t, |period| t.rem_euclid(period))
     }
 
-    /// Moves the world to `t_ns`, exchanging bytes with the computer through `link`.
+    /// Moves the world to `t_ns`, exchanging bytes with the computer through `link`. After
+    /// the airplane is lost ([`failure`](Self::failure)) nothing moves and the devices are
+    /// silent.
     pub fn advance_to(&mut self, t_ns: u64, link: &mut dyn DeviceLink) {
         let forced = self.faults;
-        while self.plant.time_ns() < t_ns {
+        while self.failure.is_none() && self.plant.time_ns() < t_ns {
             self.faults = merge(
                 forced,
                 DeviceFaults::at(&self.scheduled_faults, self.fault_clock_s()),
@@ -281,11 +302,12 @@ impl SimWorld {
                 self.stats.computer_steps += 1;
             }
             if let Err(e) = self.plant.try_step(PLANT_STEP_NS as f64 * 1e-9, &actuators) {
-                // The airplane is gone (JSBSim's process died or talks garbage): nothing can
-                // fly on. The logs hold everything up to now (they survive `kill -9` by
-                // design), so stop here with one line rather than hang the executive.
-                eprintln!("skyframe: the simulated airplane stopped: {e}");
-                std::process::exit(3);
+                // Nothing can fly on; whoever runs the flight decides how to stop.
+                if let Some(hook) = self.on_failure.as_mut() {
+                    hook(&e);
+                }
+                self.failure = Some(e);
+                break;
             }
             let now = self.plant.time_ns();
             if now >= self.next_imu_ns {

@@ -19,8 +19,8 @@ use skyframe_sim::scenario::{FaultKind, Scenario};
 use skyframe_sim::world::SimWorld;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use std::sync::Arc;
-use std::sync::atomic::AtomicBool;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 #[derive(Parser, Debug)]
@@ -966,13 +966,26 @@ fn score_and_keep(
 /// Flies with `devices` and returns the report.
 fn fly_with<P: Platform>(
     platform: &P,
-    devices: Devices<'_>,
+    mut devices: Devices<'_>,
     args: &FlightArgs,
     log: &crate::vehicle::LogConfig,
     free_space: Option<crate::platform::FreeSpaceProbe>,
 ) -> Result<FlightReport, String> {
     let faults = fault_plan(&SHIPPED, &args.inject_overrun)?;
     let stop = stop_flag()?;
+    // A simulated airplane lost mid-flight (JSBSim's process died) stops the flight as a
+    // signal would, so the tasks shut down and the logs close whole; the flight then ends
+    // with the plant's error.
+    let airplane_lost: Arc<Mutex<Option<String>>> = Arc::default();
+    if let Devices::Sim(world) = &mut devices {
+        let (lost, stop) = (Arc::clone(&airplane_lost), Arc::clone(&stop));
+        world.on_failure(Box::new(move |e| {
+            if let Ok(mut slot) = lost.lock() {
+                *slot = Some(e.to_string());
+            }
+            stop.store(true, Ordering::Relaxed);
+        }));
+    }
     let mavlink = if matches!(devices, Devices::None) {
         if !args.mavlink.endpoints.is_empty() {
             return Err("--mavlink needs a vehicle: `skyframe sim` or `skyframe run`".into());
@@ -981,7 +994,7 @@ fn fly_with<P: Platform>(
     } else {
         args.mavlink.plan(args.link.vehicle_id, &stop)?
     };
-    fly(
+    let report = fly(
         platform,
         &SHIPPED,
         FlightPlan {
@@ -1015,7 +1028,14 @@ fn fly_with<P: Platform>(
                 ..RunOptions::new(args.duration.map(Duration::from_secs_f64), &stop)
             },
         },
-    )
+    )?;
+    match airplane_lost.lock().ok().and_then(|mut lost| lost.take()) {
+        Some(e) => Err(format!(
+            "the simulated airplane stopped: {e} (logs in {} closed)",
+            report.flight_dir.display()
+        )),
+        None => Ok(report),
+    }
 }
 
 #[cfg(test)]

@@ -226,6 +226,9 @@ fn run(args: Args) -> Result<(), String> {
         std::thread::sleep(TICK);
         let now_ns = u64::try_from(start.elapsed().as_nanos()).unwrap_or(u64::MAX);
         world.advance_to(now_ns, &mut link);
+        if let Some(e) = world.failure() {
+            return Err(format!("the simulated airplane stopped: {e}"));
+        }
     }
     let stats = world.stats();
     let truth = world.truth();

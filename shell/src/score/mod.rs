@@ -13,6 +13,7 @@
 //! Working from the logs (not from memory inside the run) means the score describes what a
 //! researcher gets on disk, and any flight directory can be scored again.
 
+mod course;
 mod reference;
 mod replay;
 mod truth;
@@ -27,6 +28,7 @@ use skyframe_core::estimation::nalgebra::{UnitQuaternion, Vector3};
 use skyframe_logtable::{Stream, Table, load_stream, problem_line};
 use skyframe_sim::plant::GeodeticPosition;
 
+use course::{BankLimit, CourseRow, TurnWindow};
 pub use reference::ReferenceFilters;
 pub use replay::StepTime;
 use skyframe_core::angles::wrap_pi;
@@ -135,8 +137,9 @@ pub struct ControlScore {
     /// error, which no control loop can see.
     pub altitude_hold_loop_rms_m: f64,
     /// True course over ground against the commanded course (the autopilot holds course: no
-    /// magnetometer), while the command has been steady (within 5° over 5 s), from 10 s after
-    /// AUTO engaged.
+    /// magnetometer), from 10 s after AUTO engaged, while the command has been steady (within
+    /// 5° over 5 s) and once the turn to it is over: captured, or the time a turn at the bank
+    /// limit takes passed (`score/course.rs`).
     pub heading_hold_rms_deg: f64,
     pub heading_hold_max_deg: f64,
     pub heading_hold_s: f64,
@@ -250,8 +253,20 @@ fn score_logs(setup: &ScoreSetup<'_>) -> Result<Score, String> {
     let (window, attitude, position_error) =
         score_estimates(estimator, &truth, &frame, &truth_origin)?;
     let position = score_gps(&fixes, &truth, &truth_origin, window, position_error);
+    // Flights logged before the gains record carried the bank limit: the default.
+    let bank_limit = logs
+        .control
+        .table(2)
+        .and_then(|gains| {
+            Some(BankLimit::new(
+                &gains.times_ns,
+                gains.column("max_bank_deg")?,
+            ))
+        })
+        .unwrap_or_else(|| BankLimit::new(&[], &[]));
     let control = score_control(
         table(&logs.control, "control")?,
+        &bank_limit,
         &truth,
         home.altitude_m,
         truth_origin.alt_msl_m,
@@ -496,6 +511,7 @@ fn score_gps(
 /// Altitude and course hold in AUTO (`control.bin` format 1, 50 Hz).
 fn score_control(
     control: &Table,
+    bank_limit: &BankLimit,
     truth: &TruthSeries,
     home_alt_msl_m: f64,
     origin_alt_msl_m: f64,
@@ -503,13 +519,11 @@ fn score_control(
     const AUTO: f64 = 2.0;
     const ZONE_HOLD: f64 = 0.0;
     const SETTLE_NS: i64 = 10_000_000_000;
-    const STEADY_NS: i64 = 5_000_000_000;
     const CAPTURE_M: f64 = 1.0;
-    let steady_rad = 5f64.to_radians();
     let c = |name| column(control, "control", name);
     let (mode, zone) = (c("mode")?, c("zone")?);
     let (alt_c, course_c) = (c("alt_c_m")?, c("course_c_rad")?);
-    let alt_est = c("alt_m")?;
+    let (alt_est, course_est) = (c("alt_m")?, c("course_rad")?);
     let times = &control.times_ns;
     let mut auto_since: Option<i64> = None;
     let mut last_t: Option<i64> = None;
@@ -518,6 +532,7 @@ fn score_control(
     let mut alt_hold_loop = ErrorStats::default();
     let (mut last_alt_c, mut captured) = (f64::NAN, false);
     let (mut course_hold, mut course_all) = (ErrorStats::default(), ErrorStats::default());
+    let mut turn = TurnWindow::new();
     for (i, &t) in times.iter().enumerate() {
         let at = |col: &[f64]| col.get(i).copied().unwrap_or(f64::NAN);
         let in_auto = at(mode) == AUTO;
@@ -525,7 +540,10 @@ fn score_control(
             auto_ns += last_t.filter(|_| auto_since.is_some()).map_or(0, |l| t - l);
         }
         auto_since = match (in_auto, auto_since) {
-            (true, None) => Some(t),
+            (true, None) => {
+                turn = TurnWindow::new();
+                Some(t)
+            }
             (true, since) => since,
             (false, _) => None,
         };
@@ -549,15 +567,20 @@ fn score_control(
             alt_hold.push(alt_err);
             alt_hold_loop.push(at(alt_est) - at(alt_c));
         }
-        let course = tr.vel_ned_mps[1].atan2(tr.vel_ned_mps[0]);
-        let course_err = wrap_pi(course - at(course_c));
+        let [vn, ve, _] = tr.vel_ned_mps;
+        let row = CourseRow {
+            t_ns: t,
+            command_rad: at(course_c),
+            estimated_rad: at(course_est),
+            true_rad: ve.atan2(vn),
+            ground_speed_mps: vn.hypot(ve),
+            bank_limit_rad: bank_limit.at(t),
+        };
+        let course_err = wrap_pi(row.true_rad - row.command_rad);
         course_all.push(course_err);
-        let earlier = times.partition_point(|&x| x < t - STEADY_NS);
-        let steady = times.get(earlier).is_some_and(|&te| te >= since)
-            && course_c
-                .get(earlier)
-                .is_some_and(|&before| wrap_pi(at(course_c) - before).abs() < steady_rad);
-        if settled && steady {
+        // Evaluated on every row: the turn state follows each command change.
+        let turn_over = turn.turn_over(&row);
+        if settled && turn_over && course::steady(times, course_c, i, since) {
             course_hold.push(course_err);
         }
     }
@@ -744,6 +767,114 @@ mod tests {
         assert!(a.rotation_rms_deg > 0.19, "{a:?}");
         // Same place, same velocity.
         assert!(pos.horizontal.max_abs < 1e-6 && pos.velocity.max_abs < 1e-6);
+    }
+
+    const CONTROL: [&str; 6] = [
+        "mode",
+        "zone",
+        "alt_c_m",
+        "alt_m",
+        "course_c_rad",
+        "course_rad",
+    ];
+
+    /// 70 s of AUTO at 20 m/s and 100 m, the course command and the flown course (degrees,
+    /// the estimate equal to the truth) as functions of time (s); default bank limit (30°,
+    /// so a turn at the limit runs at g·tan 30° / 20 m/s = 16.2°/s).
+    fn fly_course(
+        command_deg: impl Fn(f64) -> f64,
+        course_deg: impl Fn(f64) -> f64,
+    ) -> ControlScore {
+        let rows = 3500;
+        let mut control = Vec::new();
+        let mut truth = Vec::new();
+        for k in 0..rows {
+            let t = k as f64 * 0.02;
+            let course = course_deg(t).to_radians();
+            control.push(vec![
+                2.0,
+                0.0,
+                100.0,
+                100.0,
+                command_deg(t).to_radians(),
+                course,
+            ]);
+            let mut row = vec![0.0; TRUTH.len()];
+            row[2] = -100.0;
+            row[3] = 20.0 * course.cos();
+            row[4] = 20.0 * course.sin();
+            row[12] = 20.0;
+            truth.push(row);
+        }
+        let truth = TruthSeries::from_table(&table(&TRUTH, &truth)).expect("truth");
+        score_control(
+            &table(&CONTROL, &control),
+            &BankLimit::new(&[], &[]),
+            &truth,
+            0.0,
+            0.0,
+        )
+        .expect("scores")
+    }
+
+    /// A new command at 30 s: north to east.
+    fn east_from_30_s(t: f64) -> f64 {
+        if t < 30.0 { 0.0 } else { 90.0 }
+    }
+
+    #[test]
+    fn a_roll_out_that_overshoots_is_hold_error() {
+        // Turning at 18°/s to 100° (10° past the command, reached at 35.6 s), back at 1°/s.
+        let peak_s = 30.0 + 100.0 / 18.0;
+        let c = fly_course(east_from_30_s, |t| {
+            if t < 30.0 {
+                0.0
+            } else if t < peak_s {
+                18.0 * (t - 30.0)
+            } else {
+                (100.0 - (t - peak_s)).max(90.0)
+            }
+        });
+        // Captured (within 5°) at 34.7 s, the command steady from 35 s: held 10-30 s and
+        // 35-70 s, and the 10° overshoot is in it.
+        assert!((c.heading_hold_max_deg - 10.0).abs() < 0.05, "{c:?}");
+        assert!((c.heading_hold_s - 55.0).abs() < 0.05, "{c:?}");
+    }
+
+    #[test]
+    fn an_airplane_that_never_captures_is_held_from_when_it_could_have_turned() {
+        // 10°/s to 80°, then a standing 10° error: never within 5°.
+        let c = fly_course(east_from_30_s, |t| (10.0 * (t - 30.0)).clamp(0.0, 80.0));
+        // A 90° turn at 30° of bank and 20 m/s, plus 2 s to roll in and out; the first 50 Hz
+        // row from then on is the first held.
+        let turn_s = 90f64.to_radians() / (9.80665 * 30f64.to_radians().tan() / 20.0) + 2.0;
+        let first_held_s = ((30.0 + turn_s) / 0.02).ceil() * 0.02;
+        assert!((first_held_s - 37.56).abs() < 1e-9);
+        let error_then = 90.0 - 10.0 * (first_held_s - 30.0);
+        assert!((c.heading_hold_max_deg - error_then).abs() < 1e-3, "{c:?}");
+        assert!(
+            (c.heading_hold_s - (20.0 + 70.0 - first_held_s)).abs() < 0.01,
+            "{c:?}"
+        );
+    }
+
+    #[test]
+    fn a_command_that_swings_away_and_back_is_not_a_hold() {
+        // The command at 150° for 1 s (a loiter entry's swing); the airplane starts after it
+        // and is 20° off from 33 s to 35 s.
+        let c = fly_course(
+            |t| {
+                if (30.0..31.0).contains(&t) {
+                    150.0
+                } else {
+                    0.0
+                }
+            },
+            |t| if (33.0..35.0).contains(&t) { 20.0 } else { 0.0 },
+        );
+        // Steady again 5 s after the swing: held 10-30 s and 36-70 s, none of the 20°.
+        assert!(c.heading_hold_max_deg < 1e-6, "{c:?}");
+        assert!((c.heading_hold_s - 54.0).abs() < 0.05, "{c:?}");
     }
 
     #[test]
