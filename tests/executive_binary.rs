@@ -520,16 +520,7 @@ fn a_run_logs_its_timing_records_readably_for_skyframe_log() {
             .iter()
             .all(|t| t["log_dropped"] == 0)
     );
-    let info = Command::new(skyframe_tests::binary("skyframe-log", "skyframe-log"))
-        .args(["info", *file])
-        .output()
-        .expect("skyframe-log runs");
-    let text = String::from_utf8_lossy(&info.stdout);
-    assert!(
-        info.status.success(),
-        "{text}{}",
-        String::from_utf8_lossy(&info.stderr)
-    );
+    let text = skyframe_tests::log_info(&[*file]);
     assert!(text.contains("1: data blocks 50"), "{text}");
     assert!(text.contains("2: data blocks 1"), "{text}");
     assert!(text.contains("closed cleanly: yes"), "{text}");

@@ -12,7 +12,7 @@ use skyframe_core::link::params::ParamTable;
 use skyframe_core::tasks::control::{ControlSettings, define_params};
 use skyframe_shell::mavlink::params::mavlink_id;
 use skyframe_tests::{
-    csv_column, csv_columns, csv_rows, scratch, skyframe, spawn_piped, to_csv, workspace,
+    csv_column, csv_columns, csv_rows, scratch, shipped, skyframe, spawn_piped, to_csv, workspace,
 };
 use std::net::UdpSocket;
 use std::path::{Path, PathBuf};
@@ -123,17 +123,7 @@ fn sim_on_mavlink(dir: &Path, port: u16, speedup: &str, args: &[&str]) -> Child 
 /// The AUTO circuit (`scenarios/auto-circuit.toml` with its mission), whole (235 s), at 8×
 /// real time, on MAVLink alone.
 fn auto_circuit_on_mavlink(dir: &Path, port: u16) -> Child {
-    let path = |p: &str| {
-        workspace()
-            .join(p)
-            .to_str()
-            .expect("utf-8 path")
-            .to_string()
-    };
-    let (scenario, mission) = (
-        path("scenarios/auto-circuit.toml"),
-        path("scenarios/circuit-mission.toml"),
-    );
+    let (scenario, mission) = (shipped("auto-circuit"), shipped("circuit-mission"));
     let circuit = [
         "--duration",
         "235",
@@ -223,7 +213,7 @@ fn flight_csv(report: &serde_json::Value, dir: &Path) -> PathBuf {
 fn a_parked_vehicle_speaks_mavlink_to_pymavlink() {
     let (_others, dir, port) = setup("mavlink-parked");
     let dir = dir.as_path();
-    let mission = workspace().join("scenarios/circuit-mission.toml");
+    let mission = shipped("circuit-mission");
     let sim = sim_on_mavlink(
         dir,
         port,
@@ -232,7 +222,7 @@ fn a_parked_vehicle_speaks_mavlink_to_pymavlink() {
             "--scenario",
             &parked_in(dir),
             "--mission",
-            mission.to_str().expect("path"),
+            &mission,
             // A warning the vehicle reports: imu over its budget in frames 500..505 (5 s).
             "--inject-overrun",
             "imu:1000@500..505",

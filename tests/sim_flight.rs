@@ -2,7 +2,7 @@
 //! speaking the hardware protocols through the same decoders.
 
 use serde_json::Value;
-use skyframe_tests::{csv_rows, on_the_clock, run_ok, scratch, skyframe, to_csv};
+use skyframe_tests::{csv_rows, on_the_clock, run_ok, scratch, shipped, skyframe, to_csv};
 use std::path::{Path, PathBuf};
 
 fn sim_fast(dir: &Path, seconds: &str, seed: &str) -> Value {
@@ -209,19 +209,9 @@ fn the_default_scenario_takes_off_flies_its_aerobatics_and_lands() {
 #[test]
 fn a_mission_is_flown_in_auto_then_loitered_and_the_pilot_lands() {
     let dir = scratch("sim-mission");
-    let root = skyframe_tests::workspace();
-    let scenario = root.join("scenarios/auto-circuit.toml");
-    let mission = root.join("scenarios/circuit-mission.toml");
-    let report = sim_fast_with(
-        &dir,
-        &[
-            "--scenario",
-            scenario.to_str().expect("utf-8"),
-            "--mission",
-            mission.to_str().expect("utf-8"),
-            "--score",
-        ],
-    );
+    let (scenario, mission) = (shipped("auto-circuit"), shipped("circuit-mission"));
+    let args = ["--scenario", &scenario, "--mission", &mission, "--score"];
+    let report = sim_fast_with(&dir, &args);
     assert_eq!(report["stop_reason"], "duration");
     let flight = PathBuf::from(report["flight_dir"].as_str().expect("dir"));
     let csv = to_csv(&[&flight], &dir.join("csv"));
@@ -299,11 +289,7 @@ fn a_mission_is_flown_in_auto_then_loitered_and_the_pilot_lands() {
 /// The `--score` of the mission flight: the targets, one figure recomputed here from
 /// the CSV logs to prove the scorer, and the `ahrs` reference filters beside ours.
 fn check_score(score: &Value, csv: &Path) {
-    let figure = |group: &str, name: &str| {
-        score[group][name]
-            .as_f64()
-            .unwrap_or_else(|| panic!("score.{group}.{name} in {score}"))
-    };
+    let figure = |group: &str, name: &str| skyframe_tests::score_figure(score, group, name);
     assert!(figure("attitude", "roll_rms_deg") <= 0.5, "{score}");
     assert!(figure("attitude", "pitch_rms_deg") <= 0.5, "{score}");
     assert!(figure("attitude", "yaw_rms_deg") <= 2.0, "{score}");
@@ -385,8 +371,7 @@ fn score_says_in_one_line_what_is_wrong_with_its_directory() {
 #[test]
 fn the_faults_scenario_shows_each_fault_in_health_and_logs() {
     let dir = scratch("sim-faults");
-    let scenario = skyframe_tests::workspace().join("scenarios/faults.toml");
-    let report = sim_fast_with(&dir, &["--scenario", scenario.to_str().expect("utf-8")]);
+    let report = sim_fast_with(&dir, &["--scenario", &shipped("faults")]);
     assert_eq!(report["stop_reason"], "duration", "the run completes");
     let device = |name: &str| -> &Value {
         report["devices"]

@@ -3,7 +3,7 @@
 //! child can fail. Needs python3 with the jsbsim package (`.ci/run` installs it).
 
 use serde_json::Value;
-use skyframe_tests::{scratch, skyframe};
+use skyframe_tests::{scratch, shipped, skyframe};
 use std::path::Path;
 
 fn sim(dir: &Path, extra: &[&str]) -> std::process::Output {
@@ -18,16 +18,17 @@ fn sim(dir: &Path, extra: &[&str]) -> std::process::Output {
 #[test]
 fn the_autopilot_flies_the_auto_circuit_on_jsbsims_c172x() {
     let dir = scratch("jsbsim-c172x-circuit");
-    let root = skyframe_tests::workspace();
-    let scenario = root.join("scenarios/c172x-auto-circuit.toml");
-    let mission = root.join("scenarios/c172x-circuit-mission.toml");
+    let (scenario, mission) = (
+        shipped("c172x-auto-circuit"),
+        shipped("c172x-circuit-mission"),
+    );
     let out = sim(
         &dir,
         &[
             "--scenario",
-            scenario.to_str().expect("utf-8"),
+            &scenario,
             "--mission",
-            mission.to_str().expect("utf-8"),
+            &mission,
             "--score",
             "--no-reference-filters",
             // Not the scenario's seed 5, on which the 172's roll gain was chosen.
@@ -42,11 +43,7 @@ fn the_autopilot_flies_the_auto_circuit_on_jsbsims_c172x() {
     );
     let report: Value = serde_json::from_slice(&out.stdout).expect("JSON report");
     let score = &report["score"];
-    let figure = |group: &str, name: &str| {
-        score[group][name]
-            .as_f64()
-            .unwrap_or_else(|| panic!("score.{group}.{name} in {score}"))
-    };
+    let figure = |group: &str, name: &str| skyframe_tests::score_figure(score, group, name);
     // Issue 20's targets, against JSBSim's truth (truth.bin is written from the same Truth
     // whichever plant flies).
     assert!(figure("attitude", "roll_rms_deg") <= 0.5, "{score}");
@@ -167,17 +164,7 @@ fn jsbsim_dying_mid_flight_stops_the_flight_with_its_logs_closed() {
         .filter(|p| p.extension().is_some_and(|x| x == "bin"))
         .collect();
     assert!(logs.len() >= 8, "{logs:?}");
-    let info = std::process::Command::new(skyframe_tests::binary("skyframe-log", "skyframe-log"))
-        .arg("info")
-        .args(&logs)
-        .output()
-        .expect("skyframe-log runs");
-    let text = String::from_utf8_lossy(&info.stdout);
-    assert!(
-        info.status.success(),
-        "{text}{}",
-        String::from_utf8_lossy(&info.stderr)
-    );
+    let text = skyframe_tests::log_info(&logs);
     assert_eq!(
         text.matches("closed cleanly: yes").count(),
         logs.len(),

@@ -12,6 +12,33 @@ pub fn workspace() -> PathBuf {
         .unwrap_or_default()
 }
 
+/// The path of shipped scenario or mission file `scenarios/NAME.toml`, as a command-line
+/// argument.
+pub fn shipped(name: &str) -> String {
+    workspace()
+        .join("scenarios")
+        .join(format!("{name}.toml"))
+        .to_string_lossy()
+        .into_owned()
+}
+
+/// `skyframe-log info` on these logs, which must succeed: its report.
+pub fn log_info<P: AsRef<std::ffi::OsStr>>(logs: &[P]) -> String {
+    let info = run_ok(
+        Command::new(binary("skyframe-log", "skyframe-log"))
+            .arg("info")
+            .args(logs),
+    );
+    String::from_utf8_lossy(&info.stdout).into_owned()
+}
+
+/// Figure `group.name` of a `--score` report.
+pub fn score_figure(score: &serde_json::Value, group: &str, name: &str) -> f64 {
+    score[group][name]
+        .as_f64()
+        .unwrap_or_else(|| panic!("score.{group}.{name} in {score}"))
+}
+
 fn cargo() -> String {
     std::env::var("CARGO").unwrap_or_else(|_| "cargo".to_string())
 }
