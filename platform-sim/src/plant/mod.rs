@@ -276,6 +276,8 @@ impl SensorSuite {
         self.gps
             .update(truth.t_s, truth.position_ned_m, truth.velocity_ned_mps);
         let a = truth.actuators;
+        // The motor is taken to run, and shake the IMU, above 5 % throttle.
+        self.imu.set_motor_running(a.throttle > 0.05);
         let effort = a.aileron.abs() + a.elevator.abs() + a.rudder.abs();
         self.battery.step(h_s, a.throttle, motor_current_a, effort);
     }

@@ -23,8 +23,8 @@ pub struct SimImuConfig {
     pub accel_bias_std_mps2: f64,
     pub accel_bias_walk_mps2_per_sqrt_s: f64,
     pub accel_scale_error_std: f64,
-    /// White noise the airframe adds to one reading (motor and propeller vibration), per
-    /// axis, on top of the sensor's own noise.
+    /// White noise the airframe adds to one reading while the motor runs (motor and
+    /// propeller vibration), per axis, on top of the sensor's own noise.
     pub vibration_gyro_std_radps: Vec3,
     pub vibration_accel_std_mps2: Vec3,
 }
@@ -111,6 +111,7 @@ pub struct SimImu {
     rate_integral: Vec3,
     force_integral: Vec3,
     integrated_s: f64,
+    motor_running: bool,
 }
 
 impl SimImu {
@@ -134,7 +135,13 @@ impl SimImu {
             rate_integral: [0.0; 3],
             force_integral: [0.0; 3],
             integrated_s: 0.0,
+            motor_running: false,
         }
+    }
+
+    /// Whether the motor runs, and so shakes the IMU (the vibration figures).
+    pub fn set_motor_running(&mut self, running: bool) {
+        self.motor_running = running;
     }
 
     /// The truth over a plant step of `h_s` ending now: the next reading is the mean of
@@ -175,6 +182,7 @@ impl SimImu {
         let dt = self.last_t_s.map_or(0.0, |last| (t_s - last).max(0.0));
         self.last_t_s = Some(t_s);
         let c = self.config;
+        let shaking = if self.motor_running { 1.0 } else { 0.0 };
         let (rates_radps, specific_force_mps2) = if self.integrated_s > 0.0 {
             let mean = |v: Vec3| v.map(|x| x / self.integrated_s);
             (mean(self.rate_integral), mean(self.force_integral))
@@ -194,11 +202,11 @@ impl SimImu {
             gyro[i] = self.gyro_scale[i] * rates_radps[i]
                 + self.gyro_bias[i]
                 + c.gyro_noise_std_radps * self.rng.normal()
-                + c.vibration_gyro_std_radps[i] * self.rng.normal();
+                + shaking * c.vibration_gyro_std_radps[i] * self.rng.normal();
             accel[i] = self.accel_scale[i] * specific_force_mps2[i]
                 + self.accel_bias[i]
                 + c.accel_noise_std_mps2 * self.rng.normal()
-                + c.vibration_accel_std_mps2[i] * self.rng.normal();
+                + shaking * c.vibration_accel_std_mps2[i] * self.rng.normal();
         }
         SimImuReading {
             t_s,
