@@ -355,8 +355,16 @@ pub struct Ekf {
     /// Bias-corrected body rates and specific force of the last step.
     rates: Vector3<f64>,
     specific_force: Vector3<f64>,
+    /// The same, smoothed over [`GAP_HOLD_SMOOTHING_S`]: what an outage holds (one 10 ms
+    /// sample of a vibrating IMU held for seconds would be its noise, integrated).
+    held_rates: Vector3<f64>,
+    held_force: Vector3<f64>,
     steps_since_check: u32,
 }
+
+/// Time constant of the rates and specific force held across an IMU outage (s): short
+/// against a manoeuvre, long against the vibration (averages ~25 samples).
+const GAP_HOLD_SMOOTHING_S: f64 = 0.25;
 
 fn skew(v: &Vector3<f64>) -> Matrix3<f64> {
     v.cross_matrix()
@@ -382,6 +390,8 @@ impl Ekf {
             last_reset: None,
             rates: Vector3::zeros(),
             specific_force: Vector3::zeros(),
+            held_rates: Vector3::zeros(),
+            held_force: x.attitude.inverse() * Vector3::new(0.0, 0.0, -GRAVITY_MPS2),
             steps_since_check: 0,
         };
         ekf.p = ekf.initial_covariance(yaw_sd_rad);
@@ -466,6 +476,9 @@ impl Ekf {
         let f = specific_force_mps2 - x.accel_bias_mps2;
         self.rates = w;
         self.specific_force = f;
+        let k = (dt_s / GAP_HOLD_SMOOTHING_S).min(1.0);
+        self.held_rates += (w - self.held_rates) * k;
+        self.held_force += (f - self.held_force) * k;
         // The specific force is rotated with the mid-interval attitude (second order in the
         // rotation over the step: a turn does not leak into a tilt through the integration).
         let half = x.attitude * UnitQuaternion::from_scaled_axis(w * (0.5 * dt_s));
@@ -493,8 +506,8 @@ impl Ekf {
     }
 
     /// Carries the filter across an IMU outage of `gap_s` ending at `t_ns` (the sample that
-    /// ends it comes after): the last bias-corrected rates and specific force held over the
-    /// gap, 10 ms at a time, as dead reckoning would, and the attitude and velocity
+    /// ends it comes after): the last bias-corrected rates and specific force (smoothed over
+    /// the last quarter second) held over the gap, 10 ms at a time, as dead reckoning would, and the attitude and velocity
     /// uncertainty grown by what they may have changed by meanwhile (`σ·gap` each). Without
     /// this the filter would stand still while the vehicle flew on, then reject the GPS as a
     /// jump and keep the turn it missed as a tilt. `false` (counted as a refused sample,
@@ -504,8 +517,8 @@ impl Ekf {
             self.counters.imu_rejected = self.counters.imu_rejected.wrapping_add(1);
             return false;
         }
-        let w = self.rates + self.x.gyro_bias_radps;
-        let f = self.specific_force + self.x.accel_bias_mps2;
+        let w = self.held_rates + self.x.gyro_bias_radps;
+        let f = self.held_force + self.x.accel_bias_mps2;
         let step_ns = 10_000_000u64;
         let gap_ns = (gap_s * 1e9) as u64;
         let start_ns = t_ns.saturating_sub(gap_ns);

@@ -308,6 +308,9 @@ impl Estimator {
                         let gap_end_ns = t_ns.saturating_sub((frame_s * 1e9) as u64);
                         if ekf.bridge_gap(gap_end_ns, gap_s) {
                             ekf.propagate(t_ns, frame_s, w, f);
+                            // Dead-reckoned: healthy again only once the GPS agrees, as
+                            // after a reset.
+                            self.accepted_since_reset = 0;
                         }
                     } else {
                         ekf.propagate(t_ns, dt_s, w, f);
