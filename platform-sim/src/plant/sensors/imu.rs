@@ -147,7 +147,7 @@ impl SimImu {
     /// The truth over a plant step of `h_s` ending now: the next reading is the mean of
     /// these steps.
     pub fn integrate(&mut self, h_s: f64, rates_radps: Vec3, specific_force_mps2: Vec3) {
-        if !(h_s > 0.0) {
+        if h_s.is_nan() || h_s <= 0.0 {
             return;
         }
         for i in 0..3 {
