@@ -470,7 +470,7 @@ fn an_imu_outage_the_counter_missed_is_timed_by_the_receive_times() {
     let health = HealthBoard::new(1);
     let mut task = EstimatorTask::new(quick_config(), Capture(&bytes), &imu, &gps, None, &out);
     task.init(&mut cx(&health, 0)).expect("init");
-    let mut step = |task: &mut EstimatorTask<'_, Capture<'_>>, counter: u8, t: u64| {
+    let step = |task: &mut EstimatorTask<'_, Capture<'_>>, counter: u8, t: u64| {
         imu.publish(at_rest(counter, t));
         if (t / (10 * MS)) % 10 == 0 {
             gps.publish(fix(t));
