@@ -69,6 +69,10 @@ pub struct Alignment {
     sum_force: Vector3<f64>,
     sum_force_sq: Vector3<f64>,
     restarts: u32,
+    /// The longest stretch at rest that motion cut short: (samples, mean rate, rate σ of one
+    /// sample). A vehicle that never rests the whole time still rested this long, and its
+    /// mean rate is the best gyro bias there is for a start in motion.
+    longest_rest: Option<(u32, Vector3<f64>, f64)>,
 }
 
 impl Alignment {
@@ -81,13 +85,41 @@ impl Alignment {
             sum_force: Vector3::zeros(),
             sum_force_sq: Vector3::zeros(),
             restarts: 0,
+            longest_rest: None,
         }
     }
 
     pub fn restart(&mut self) {
         let restarts = self.restarts;
+        let mut longest = self.longest_rest;
+        if self.count > longest.map_or(0, |(n, _, _)| n) {
+            let n = f64::from(self.count);
+            let mean = self.sum_rate / n;
+            let var = self.sum_rate_sq / n - mean.component_mul(&mean);
+            let sd = libm::sqrt(var.iter().map(|v| v.max(0.0)).sum::<f64>() / 3.0);
+            longest = Some((self.count, mean, sd));
+        }
         *self = Self::new(self.config);
         self.restarts = restarts;
+        self.longest_rest = longest;
+    }
+
+    /// The mean rate of the longest stretch at rest so far (the one under way included) and
+    /// its 1-σ as a bias estimate, if it lasted at least `min_samples`.
+    pub fn rest_gyro_bias(&self, min_samples: u32) -> Option<(Vector3<f64>, f64)> {
+        let current = (self.count > 0).then(|| {
+            let n = f64::from(self.count);
+            let mean = self.sum_rate / n;
+            let var = self.sum_rate_sq / n - mean.component_mul(&mean);
+            let sd = libm::sqrt(var.iter().map(|v| v.max(0.0)).sum::<f64>() / 3.0);
+            (self.count, mean, sd)
+        });
+        let best = match (current, self.longest_rest) {
+            (Some(c), Some(l)) => Some(if c.0 >= l.0 { c } else { l }),
+            (c, l) => c.or(l),
+        };
+        best.filter(|(n, _, _)| *n >= min_samples.max(1))
+            .map(|(n, mean, sd)| (mean, sd / libm::sqrt(f64::from(n))))
     }
 
     /// Motion restarts so far.

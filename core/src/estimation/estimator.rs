@@ -5,6 +5,13 @@
 //! [`Phase::AwaitingHeading`] (the filter runs, but its yaw is a guess: GPS updates only
 //! while at rest, and the estimate is not healthy) → [`Phase::Running`]. The heading comes from
 //! [`HeadingSource`]: configured, or the first GPS course over ground above a speed.
+//!
+//! A vehicle that never rests for the alignment (a hand launch, a gust rocking it on the
+//! runway, a take-off straight away) starts **in motion** instead: at the first GPS course
+//! above the heading speed, yaw from that course, roll and pitch from the recent specific
+//! force with the GPS-measured acceleration taken out of it, the gyro bias from the longest
+//! stretch it did rest (else unknown), and a wide tilt σ that the GPS velocity updates narrow
+//! before the estimate is called healthy.
 
 use nalgebra::Vector3;
 
@@ -49,6 +56,10 @@ pub struct EstimatorConfig {
     pub healthy_gps_timeout_ns: u64,
     /// Accepted GPS updates needed after a whole-filter reset before healthy again.
     pub updates_after_reset: u32,
+    /// Start in motion (module comment) when the alignment has not finished by the first GPS
+    /// course at the heading speed; roll/pitch 1-σ of that start (rad).
+    pub start_in_motion: bool,
+    pub in_motion_tilt_sd_rad: f32,
 }
 
 impl Default for EstimatorConfig {
@@ -69,6 +80,11 @@ impl Default for EstimatorConfig {
             healthy_max_pos_sd_m: 30.0,
             healthy_gps_timeout_ns: 5_000_000_000,
             updates_after_reset: 10,
+            start_in_motion: true,
+            // The levelling's error: the GPS acceleration (differenced 10 Hz velocities,
+            // smoothed over 0.5 s) is good to ~0.3 m/s², ~2° of tilt, and the vehicle turns
+            // while the specific force is averaged.
+            in_motion_tilt_sd_rad: 5f32.to_radians(),
         }
     }
 }
@@ -191,6 +207,35 @@ pub struct Estimator {
     gps_pos_nis: f32,
     gps_vel_nis: f32,
     t_ns: u64,
+    /// While aligning, for a start in motion: the specific force and the GPS acceleration
+    /// (NED), both smoothed over [`MOTION_SMOOTHING_S`], and the last fix's velocity.
+    force_mean: Option<Vector3<f64>>,
+    gps_accel_mean: Option<Vector3<f64>>,
+    last_fix_velocity: Option<(u64, Vector3<f64>)>,
+}
+
+/// Time constant of the smoothing of the specific force and the GPS acceleration for a start
+/// in motion (s): long enough to average the GPS velocity noise, short against a take-off run.
+const MOTION_SMOOTHING_S: f64 = 0.5;
+
+/// A stretch at rest shorter than this (samples) gives no gyro bias for a start in motion.
+const MIN_REST_SAMPLES: u32 = 100;
+
+/// Roll and pitch (rad) of a vehicle whose specific force, gravity only, is `f` (body FRD).
+fn level(f: &Vector3<f64>) -> (f64, f64) {
+    (
+        libm::atan2(-f.y, -f.z),
+        libm::atan2(f.x, libm::sqrt(f.y * f.y + f.z * f.z)),
+    )
+}
+
+/// Exponential smoothing of `mean` towards `x` over `dt_s`.
+fn smooth(mean: &mut Option<Vector3<f64>>, x: Vector3<f64>, dt_s: f64) {
+    let k = (dt_s / MOTION_SMOOTHING_S).clamp(0.0, 1.0);
+    *mean = Some(match *mean {
+        Some(m) => m + (x - m) * k,
+        None => x,
+    });
 }
 
 impl Estimator {
@@ -209,6 +254,9 @@ impl Estimator {
             gps_pos_nis: f32::NAN,
             gps_vel_nis: f32::NAN,
             t_ns: 0,
+            force_mean: None,
+            gps_accel_mean: None,
+            last_fix_velocity: None,
         }
     }
 
@@ -241,6 +289,9 @@ impl Estimator {
         let f = vec3(specific_force);
         match self.phase {
             Phase::Aligning => {
+                if f.iter().all(|x| x.is_finite()) && dt_s > 0.0 {
+                    smooth(&mut self.force_mean, f, dt_s);
+                }
                 self.alignment.add(w, f);
                 if let Some(result) = self.alignment.result() {
                     self.aligned = Some(result);
@@ -249,7 +300,21 @@ impl Estimator {
             }
             Phase::AwaitingHeading | Phase::Running => {
                 if let Some(ekf) = self.ekf.as_mut() {
-                    ekf.propagate(t_ns, dt_s, w, f);
+                    // A sample after an outage (the filter takes steps up to 0.1 s): bridge
+                    // the outage, then the sample over its own frame.
+                    if dt_s > 0.1 {
+                        let frame_s = crate::devices::imu::IMU_FRAME_PERIOD_S;
+                        let gap_s = dt_s - frame_s;
+                        let gap_end_ns = t_ns.saturating_sub((frame_s * 1e9) as u64);
+                        if ekf.bridge_gap(gap_end_ns, gap_s) {
+                            ekf.propagate(t_ns, frame_s, w, f);
+                            // Dead-reckoned: healthy again only once the GPS agrees, as
+                            // after a reset.
+                            self.accepted_since_reset = 0;
+                        }
+                    } else {
+                        ekf.propagate(t_ns, dt_s, w, f);
+                    }
                     let resets = ekf.counters().resets;
                     if resets != self.resets_seen {
                         self.resets_seen = resets;
@@ -288,6 +353,76 @@ impl Estimator {
         self.phase = phase;
     }
 
+    /// The start in motion (module comment) at a GPS course `course_rad`; `false` if there is
+    /// no specific force to level with yet.
+    fn start_in_motion(&mut self, course_rad: f64, velocity: Vector3<f64>) -> bool {
+        let Some(f) = self.force_mean else {
+            return false;
+        };
+        let a = self.gps_accel_mean.unwrap_or_else(Vector3::zeros);
+        // f = Rᵀ(a − g): take the acceleration out in the body frame of the attitude found so
+        // far; three rounds converge for accelerations well below g.
+        let (mut roll, mut pitch) = level(&f);
+        for _ in 0..3 {
+            let q = nalgebra::UnitQuaternion::from_euler_angles(roll, pitch, course_rad);
+            (roll, pitch) = level(&(f - q.inverse() * a));
+        }
+        let mut x = NominalState::at_rest(nalgebra::UnitQuaternion::from_euler_angles(
+            roll, pitch, course_rad,
+        ));
+        x.velocity_ned_mps = velocity;
+        let mut config = self.config.ekf;
+        config.init_att_sd_rad = f64::from(self.config.in_motion_tilt_sd_rad);
+        if let Some((bias, sd)) = self.alignment.rest_gyro_bias(MIN_REST_SAMPLES) {
+            x.gyro_bias_radps = bias;
+            config.init_gyro_bias_sd_radps =
+                config.init_gyro_bias_sd_radps.min((3.0 * sd).max(2e-4));
+        }
+        let yaw_sd = f64::from(self.config.heading_sd_rad);
+        self.ekf = Some(Ekf::new(config, x, self.t_ns, yaw_sd));
+        self.phase = Phase::Running;
+        self.has_position = false;
+        // Healthy only after the GPS has had its say on the guessed tilt.
+        self.accepted_since_reset = 0;
+        true
+    }
+
+    /// While aligning: the GPS acceleration for a start in motion, and the start itself at
+    /// the first course above the heading speed. `true` if the filter started.
+    fn maybe_start_in_motion(&mut self, fix: &GpsFix) -> bool {
+        let velocity = match fix.velocity_ned_mps {
+            [Some(n), Some(e), d] => Some(Vector3::new(
+                f64::from(n),
+                f64::from(e),
+                f64::from(d.unwrap_or(0.0)),
+            )),
+            _ => None,
+        }
+        .filter(|v| v.iter().all(|x| x.is_finite()));
+        if let Some(v) = velocity {
+            if let Some((t0, v0)) = self.last_fix_velocity {
+                let dt = fix.received_ns.saturating_sub(t0) as f64 * 1e-9;
+                if dt > 0.05 && dt < 1.0 {
+                    smooth(&mut self.gps_accel_mean, (v - v0) / dt, dt);
+                }
+            }
+            self.last_fix_velocity = Some((fix.received_ns, v));
+        }
+        let c = &self.config;
+        let (true, HeadingSource::GpsCourse { min_speed_mps }, Some(speed), Some(course)) = (
+            c.start_in_motion,
+            c.heading,
+            fix.ground_speed_mps,
+            fix.course_rad,
+        ) else {
+            return false;
+        };
+        let Some(v) = velocity else {
+            return false;
+        };
+        speed >= min_speed_mps && course.is_finite() && self.start_in_motion(f64::from(course), v)
+    }
+
     /// Starts the filter at a known state, skipping the alignment and the heading (a warm
     /// start in flight, or a simulation started in the air). Position and velocity still
     /// wait for the first GPS fix as usual.
@@ -313,6 +448,9 @@ impl Estimator {
         };
         if self.frame.is_none() {
             self.frame = point.and_then(LocalFrame::new);
+        }
+        if self.phase == Phase::Aligning && self.ekf.is_none() {
+            self.maybe_start_in_motion(fix);
         }
         let (Some(frame), Some(ekf)) = (self.frame.as_ref(), self.ekf.as_mut()) else {
             return;

@@ -451,3 +451,76 @@ fn control_task_flies_a_mission_put_in_force_in_flight() {
     let s = step(&mut task);
     assert_eq!(s.waypoint, u8::MAX);
 }
+
+/// An IMU that falls silent for 2 s and comes back with its frame counter one on (it did not
+/// count while its link was down, as the simulated one does): the receive times tell the
+/// task the outage, and the filter bridges it instead of taking it for one 10 ms frame.
+/// The filter's clock then stands at the new sample, its tilt σ has grown by the outage
+/// (0.05 rad/s × 1.99 s on top of what it had), and the estimate waits for the GPS to
+/// narrow it and agree before it is healthy again.
+#[test]
+fn an_imu_outage_the_counter_missed_is_timed_by_the_receive_times() {
+    let (imu, gps, out) = (
+        LatestSlot::new(),
+        LatestSlot::new(),
+        LatestSlot::<Estimate>::new(),
+    );
+    let bytes = RefCell::new(Vec::new());
+    let health = HealthBoard::new(1);
+    let mut task = EstimatorTask::new(quick_config(), Capture(&bytes), &imu, &gps, None, &out);
+    task.init(&mut cx(&health, 0)).expect("init");
+    let step = |task: &mut EstimatorTask<'_, Capture<'_>>, counter: u8, t: u64| {
+        imu.publish(at_rest(counter, t));
+        if (t / (10 * MS)) % 10 == 0 {
+            gps.publish(fix(t));
+        }
+        task.step(&mut cx(&health, t)).expect("step");
+    };
+    for k in 1..=400u64 {
+        step(&mut task, k as u8, k * 10 * MS);
+    }
+    assert!(out.peek().expect("estimate").health.healthy);
+    let tilt_sd = |task: &EstimatorTask<'_, Capture<'_>>| {
+        let p = task.estimator().ekf().expect("running").covariance();
+        p[(6, 6)].sqrt()
+    };
+    let before = tilt_sd(&task);
+    // 200 frames of silence; the next frame's counter follows the last one's.
+    let resumed_ns = 600 * 10 * MS;
+    for k in 401..600u64 {
+        task.step(&mut cx(&health, k * 10 * MS)).expect("step");
+    }
+    step(&mut task, (400 + 1) as u8, resumed_ns);
+    let ekf = task.estimator().ekf().expect("running");
+    assert_eq!(ekf.time_ns(), resumed_ns);
+    assert_eq!(ekf.counters().imu_rejected, 0);
+    let grown = tilt_sd(&task);
+    let added = ekf.config().gap_rate_sd_radps * 1.99;
+    assert!(
+        (grown - (before * before + added * added).sqrt()).abs() < 0.01,
+        "tilt σ {grown} after {before}"
+    );
+    // 5.7° of tilt σ: beyond the 5° the estimate may be healthy with.
+    let e = out.peek().expect("estimate");
+    assert_eq!(
+        (e.health.healthy, e.health.reason),
+        (false, HealthReason::AttitudeUncertain)
+    );
+    let mut reasons = Vec::new();
+    for k in 601..=900u64 {
+        step(&mut task, k as u8, k * 10 * MS);
+        let reason = out.peek().expect("estimate").health.reason;
+        if reasons.last() != Some(&reason) {
+            reasons.push(reason);
+        }
+    }
+    // The GPS narrows the tilt, then ten accepted fixes, then healthy.
+    assert_eq!(
+        reasons,
+        [
+            HealthReason::AttitudeUncertain,
+            HealthReason::ReconvergingAfterReset,
+            HealthReason::Ok
+        ]
+    );
+}

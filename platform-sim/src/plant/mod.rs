@@ -271,9 +271,13 @@ impl SensorSuite {
     /// After `h_s` of flight ending at `truth`: the GPS sees the new position, the batteries
     /// discharge for the throttle, the motor's current and the servos' effort.
     fn after_step(&mut self, h_s: f64, truth: &Truth, motor_current_a: f64) {
+        self.imu
+            .integrate(h_s, truth.rates_body_radps, truth.specific_force_body_mps2);
         self.gps
             .update(truth.t_s, truth.position_ned_m, truth.velocity_ned_mps);
         let a = truth.actuators;
+        // The motor is taken to run, and shake the IMU, above 5 % throttle.
+        self.imu.set_motor_running(a.throttle > 0.05);
         let effort = a.aileron.abs() + a.elevator.abs() + a.rudder.abs();
         self.battery.step(h_s, a.throttle, motor_current_a, effort);
     }

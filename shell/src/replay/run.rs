@@ -77,7 +77,9 @@ pub struct EstimateRow {
 
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct StartInfo {
-    /// `alignment` (the estimator's own) or `onboard-attitude` (warm start).
+    /// `alignment` (the estimator's own static one), `in-motion` (the estimator's own start
+    /// at the first GPS course, having never rested long enough) or `onboard-attitude`
+    /// (replay's warm start).
     pub how: &'static str,
     /// Log time of the start, seconds from the first IMU record.
     pub at_s: f64,
@@ -416,7 +418,8 @@ pub fn run(log: &FlightLog, options: RunOptions) -> Result<RunResult, String> {
     let mut last_counters = EkfCounters::default();
     let mut non_finite = 0u64;
     let mut last_t = None;
-    let mut alignment_started: Option<f64> = None;
+    // When the estimator started by itself, and whether its static alignment had finished.
+    let mut alignment_started: Option<(f64, bool)> = None;
     {
         let mut tasks: Vec<&mut dyn Task> = Vec::with_capacity(table.tasks.len());
         let mut imu_ref = Some(&mut imu_task as &mut dyn Task);
@@ -451,7 +454,7 @@ pub fn run(log: &FlightLog, options: RunOptions) -> Result<RunResult, String> {
             };
             let at_s = t_us.saturating_sub(t0_us) as f64 * 1e-6;
             if e.health.phase != Phase::Aligning && alignment_started.is_none() {
-                alignment_started = Some(at_s);
+                alignment_started = Some((at_s, e.health.alignment_percent >= 100));
             }
             let c = e.health.counters;
             if c.resets > last_counters.resets {
@@ -477,10 +480,23 @@ pub fn run(log: &FlightLog, options: RunOptions) -> Result<RunResult, String> {
         }
     }
     let start = estimator.started.clone().or_else(|| {
-        alignment_started.map(|at_s| StartInfo {
-            how: "alignment",
-            at_s,
-            why: "the estimator's own static alignment (10 s at rest)".into(),
+        alignment_started.map(|(at_s, aligned)| {
+            if aligned {
+                StartInfo {
+                    how: "alignment",
+                    at_s,
+                    why: "the estimator's own static alignment (10 s at rest)".into(),
+                }
+            } else {
+                StartInfo {
+                    how: "in-motion",
+                    at_s,
+                    why: "the estimator's own start in motion: it never rested 10 s, so at \
+                          the first GPS course at 5 m/s it levelled on the specific force \
+                          less the GPS acceleration"
+                        .into(),
+                }
+            }
         })
     });
     Ok(RunResult {

@@ -53,6 +53,44 @@ mod tests {
         assert_ne!(before, walking.biases().0);
     }
 
+    /// A reading is the mean of the truth over its period: a rate ramp from 0 to 1 rad/s over
+    /// ten 1 ms steps reads its mean 0.55 (the end points of the steps), not the last 1.0.
+    /// With the motor running, the y gyro's spread is the bench noise and the Zurich
+    /// vibration together, √(0.002² + 0.023²) = 0.0231 rad/s; without, the bench noise alone.
+    #[test]
+    fn imu_reads_the_mean_over_its_period_and_shakes_with_the_motor() {
+        let mut ideal = SimImu::new(SimImuConfig::ideal(), NoiseRng::new(3, stream::IMU));
+        for k in 1..=10 {
+            ideal.integrate(0.001, [0.1 * f64::from(k), 0.0, 0.0], [0.0, 0.0, -9.8]);
+        }
+        let s = ideal.sample(0.01, [1.0, 0.0, 0.0], [0.0, 0.0, -9.8]);
+        assert!((s.gyro_radps[0] - 0.55).abs() < 1e-12, "{s:?}");
+        assert!((s.specific_force_mps2[2] + 9.8).abs() < 1e-12);
+        // Nothing integrated since: the instantaneous truth.
+        let s = ideal.sample(0.02, [0.3, 0.0, 0.0], [0.0; 3]);
+        assert_eq!(s.gyro_radps[0], 0.3);
+
+        let cfg = SimImuConfig {
+            gyro_bias_walk_radps_per_sqrt_s: 0.0,
+            ..SimImuConfig::airframe_100hz()
+        };
+        let spread = |running: bool| {
+            let mut imu = SimImu::new(cfg, NoiseRng::new(9, stream::IMU));
+            imu.set_motor_running(running);
+            let n = 20_000;
+            let (mut s, mut s2) = (0.0, 0.0);
+            for k in 0..n {
+                let y = imu.sample(k as f64 * 0.01, [0.0; 3], [0.0; 3]).gyro_radps[1];
+                s += y;
+                s2 += y * y;
+            }
+            (s2 / n as f64 - (s / n as f64).powi(2)).sqrt()
+        };
+        let (shaking, still) = (spread(true), spread(false));
+        assert!((shaking - 0.0231).abs() < 0.05 * 0.0231, "{shaking}");
+        assert!((still - 0.002).abs() < 0.1 * 0.002, "{still}");
+    }
+
     #[test]
     fn geodetic_offsets_round_trip_and_have_the_right_size() {
         let home = GeodeticPosition::default();
