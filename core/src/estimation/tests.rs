@@ -176,6 +176,16 @@ fn imu_of(truth: &Truth, s: &Sensors, rng: &mut Rng) -> (Vector3<f64>, Vector3<f
     )
 }
 
+/// One IMU frame of `(rates, specific force)` into the estimator, as the IMU task hands it.
+fn estimator_imu(est: &mut Estimator, t_ns: u64, (w, f): (Vector3<f64>, Vector3<f64>)) {
+    est.imu(
+        t_ns,
+        DT,
+        [w.x as f32, w.y as f32, w.z as f32],
+        [f.x as f32, f.y as f32, f.z as f32],
+    );
+}
+
 fn gps_of(truth: &Truth, t_meas_ns: u64, s: &Sensors, rng: &mut Rng) -> GpsMeasurement {
     GpsMeasurement {
         t_ns: t_meas_ns,
@@ -309,13 +319,7 @@ fn static_alignment_then_attitude_and_biases_converge_and_covariance_shrinks() {
     let mut last_percent = 0;
     for k in 1..=6_000u64 {
         let t_ns = k * STEP_NS;
-        let (w, f) = imu_of(&traj(0.0), &s, &mut rng);
-        est.imu(
-            t_ns,
-            DT,
-            [w.x as f32, w.y as f32, w.z as f32],
-            [f.x as f32, f.y as f32, f.z as f32],
-        );
+        estimator_imu(&mut est, t_ns, imu_of(&traj(0.0), &s, &mut rng));
         if k % 10 == 0 {
             est.gps(&fix(t_ns));
         }
@@ -637,13 +641,7 @@ fn estimator_reports_reset_and_recovers_health() {
         ..Default::default()
     };
     let mut step = |est: &mut Estimator, k: u64| {
-        let (w, f) = imu_of(&traj(0.0), &s, &mut rng);
-        est.imu(
-            k * STEP_NS,
-            DT,
-            [w.x as f32, w.y as f32, w.z as f32],
-            [f.x as f32, f.y as f32, f.z as f32],
-        );
+        estimator_imu(est, k * STEP_NS, imu_of(&traj(0.0), &s, &mut rng));
         if k % 10 == 0 {
             est.gps(&fix(k * STEP_NS));
         }
@@ -1010,12 +1008,10 @@ fn a_take_off_without_rest_starts_in_motion_and_levels() {
     let mut started_at = None;
     for k in 1..=1_500u64 {
         let t = k as f64 * DT;
-        let (w, f) = imu_of(&traj(t - DT / 2.0), &s, &mut rng);
-        est.imu(
+        estimator_imu(
+            &mut est,
             k * STEP_NS,
-            DT,
-            [w.x as f32, w.y as f32, w.z as f32],
-            [f.x as f32, f.y as f32, f.z as f32],
+            imu_of(&traj(t - DT / 2.0), &s, &mut rng),
         );
         if k % 10 == 0 {
             let measured = t - latency_ns as f64 * 1e-9;
