@@ -65,12 +65,23 @@ fn directories_convert_beside_the_inputs() {
     assert_eq!(read(&dir.path().join("a.1.csv")), CSV_1);
 }
 
+/// A log file `name` holding `bytes`, in a directory of its own.
+fn log_in_dir(name: &str, bytes: &[u8]) -> (tempfile::TempDir, std::path::PathBuf) {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let log = dir.path().join(name);
+    std::fs::write(&log, bytes).expect("write");
+    (dir, log)
+}
+
+/// The example log with power lost in the middle of its first byte array (offset 103, 15
+/// bytes long).
+fn cut_log() -> (tempfile::TempDir, std::path::PathBuf) {
+    log_in_dir("cut.bin", &WHOLE[..110])
+}
+
 #[test]
 fn truncated_tail_keeps_what_came_before_and_exits_3() {
-    let dir = tempfile::tempdir().expect("temp dir");
-    let log = dir.path().join("cut.bin");
-    // Power lost in the middle of the first byte array (offset 103, 15 bytes long).
-    std::fs::write(&log, &WHOLE[..110]).expect("write");
+    let (dir, log) = cut_log();
     let output = skyframe_log(&["to-csv", log.to_str().expect("utf-8")]);
     assert_eq!(output.status.code(), Some(3));
     let path = log.display();
@@ -117,15 +128,13 @@ fn garbage_and_bad_records_are_reported_with_offsets() {
 
 #[test]
 fn percent_c_writes_raw_bytes_like_c() {
-    let dir = tempfile::tempdir().expect("temp dir");
-    let log = dir.path().join("chars.bin");
     #[rustfmt::skip]
     let bytes: &[u8] = &[
         0xFD, 4, 2, 0,  b'%', b'c',
         0xBA, 4, 3, 0,  0, 0, 0, 0,  0, 0, 0, 0,  b'A', 0xE9, b',',
         0xED, 0, 0, 0,  0, 0, 0, 0,  0, 0, 0, 0,
     ];
-    std::fs::write(&log, bytes).expect("write");
+    let (dir, log) = log_in_dir("chars.bin", bytes);
     let output = skyframe_log(&["to-csv", log.to_str().expect("utf-8")]);
     assert_eq!(output.status.code(), Some(0), "stderr: {}", stderr(&output));
     let csv = std::fs::read(dir.path().join("chars.4.csv")).expect("read");
@@ -176,9 +185,7 @@ fn info_summarises_a_file() {
 
 #[test]
 fn info_reports_damage_and_exits_3() {
-    let dir = tempfile::tempdir().expect("temp dir");
-    let log = dir.path().join("cut.bin");
-    std::fs::write(&log, &WHOLE[..110]).expect("write");
+    let (_dir, log) = cut_log();
     let output = skyframe_log(&["info", log.to_str().expect("utf-8")]);
     assert_eq!(output.status.code(), Some(3));
     let stdout = String::from_utf8_lossy(&output.stdout);
@@ -235,8 +242,6 @@ fn random_bytes_never_panic() {
 
 #[test]
 fn redefinitions_print_new_header_lines_only_when_the_format_changes() {
-    let dir = tempfile::tempdir().expect("temp dir");
-    let log = dir.path().join("redef.bin");
     #[rustfmt::skip]
     let bytes: &[u8] = &[
         0xFD, 1, 2, 0,  b'%', b'd',
@@ -250,7 +255,7 @@ fn redefinitions_print_new_header_lines_only_when_the_format_changes() {
         0xDB, 1, 1, 0,  3, 0, 0, 0,  0, 0, 0, 0,  0xAB,
         0xED, 0, 0, 0,  4, 0, 0, 0,  0, 0, 0, 0,
     ];
-    std::fs::write(&log, bytes).expect("write");
+    let (dir, log) = log_in_dir("redef.bin", bytes);
     let output = skyframe_log(&["to-csv", log.to_str().expect("utf-8")]);
     assert_eq!(output.status.code(), Some(0), "stderr: {}", stderr(&output));
     assert_eq!(
