@@ -73,6 +73,19 @@ fn log_in_dir(name: &str, bytes: &[u8]) -> (tempfile::TempDir, std::path::PathBu
     (dir, log)
 }
 
+/// `to-csv` of a damaged log: exit 3, and what it said on stderr.
+fn to_csv_damaged(log: &std::path::Path) -> String {
+    let output = skyframe_log(&["to-csv", log.to_str().expect("utf-8")]);
+    assert_eq!(output.status.code(), Some(3));
+    stderr(&output)
+}
+
+/// `to-csv` of a whole log: exit 0.
+fn to_csv_whole(log: &std::path::Path) {
+    let output = skyframe_log(&["to-csv", log.to_str().expect("utf-8")]);
+    assert_eq!(output.status.code(), Some(0), "stderr: {}", stderr(&output));
+}
+
 /// The example log with power lost in the middle of its first byte array (offset 103, 15
 /// bytes long).
 fn cut_log() -> (tempfile::TempDir, std::path::PathBuf) {
@@ -82,11 +95,9 @@ fn cut_log() -> (tempfile::TempDir, std::path::PathBuf) {
 #[test]
 fn truncated_tail_keeps_what_came_before_and_exits_3() {
     let (dir, log) = cut_log();
-    let output = skyframe_log(&["to-csv", log.to_str().expect("utf-8")]);
-    assert_eq!(output.status.code(), Some(3));
     let path = log.display();
     assert_eq!(
-        stderr(&output),
+        to_csv_damaged(&log),
         format!(
             "{path}: offset 103: truncated record: type 0xBA needs 15 bytes but the file ends \
              after 7; \
@@ -111,11 +122,9 @@ fn garbage_and_bad_records_are_reported_with_offsets() {
     bytes.extend_from_slice(&[0xDB, 9, 1, 0, 1, 0, 0, 0, 0, 0, 0, 0, 0xCC]);
     bytes.extend_from_slice(&WHOLE[131..]); // End Data at 116
     std::fs::write(&log, &bytes).expect("write");
-    let output = skyframe_log(&["to-csv", log.to_str().expect("utf-8")]);
-    assert_eq!(output.status.code(), Some(3));
     let path = log.display();
     assert_eq!(
-        stderr(&output),
+        to_csv_damaged(&log),
         format!(
             "{path}: offset 54: unknown record type 0x13; skipped to offset 59\n\
              {path}: offset 89: data block of format 1 has 2 bytes, its format needs 18; \
@@ -135,8 +144,7 @@ fn percent_c_writes_raw_bytes_like_c() {
         0xED, 0, 0, 0,  0, 0, 0, 0,  0, 0, 0, 0,
     ];
     let (dir, log) = log_in_dir("chars.bin", bytes);
-    let output = skyframe_log(&["to-csv", log.to_str().expect("utf-8")]);
-    assert_eq!(output.status.code(), Some(0), "stderr: {}", stderr(&output));
+    to_csv_whole(&log);
     let csv = std::fs::read(dir.path().join("chars.4.csv")).expect("read");
     assert_eq!(csv, b"% format 4: %c\n0.000000000,A,\xE9,,\n");
 }
@@ -256,8 +264,7 @@ fn redefinitions_print_new_header_lines_only_when_the_format_changes() {
         0xED, 0, 0, 0,  4, 0, 0, 0,  0, 0, 0, 0,
     ];
     let (dir, log) = log_in_dir("redef.bin", bytes);
-    let output = skyframe_log(&["to-csv", log.to_str().expect("utf-8")]);
-    assert_eq!(output.status.code(), Some(0), "stderr: {}", stderr(&output));
+    to_csv_whole(&log);
     assert_eq!(
         read(&dir.path().join("redef.1.csv")),
         "% format 1: %d\n% time,a\n1.000000000,1\n2.000000000,2\n\
