@@ -240,27 +240,20 @@ mod tests {
     #[test]
     fn ranges_are_the_mission_files() {
         assert!(waypoint_in_range(&wp(600.0, -500.0)));
+        let at_altitude = |altitude_m| Waypoint {
+            altitude_m,
+            ..wp(0.0, 0.0)
+        };
+        let at_airspeed = |airspeed_mps| Waypoint {
+            airspeed_mps,
+            ..wp(0.0, 0.0)
+        };
         for bad in [
-            Waypoint {
-                altitude_m: 19.9,
-                ..wp(0.0, 0.0)
-            },
-            Waypoint {
-                altitude_m: 1000.5,
-                ..wp(0.0, 0.0)
-            },
-            Waypoint {
-                airspeed_mps: 16.0,
-                ..wp(0.0, 0.0)
-            },
-            Waypoint {
-                airspeed_mps: 33.0,
-                ..wp(0.0, 0.0)
-            },
-            Waypoint {
-                airspeed_mps: f32::NAN,
-                ..wp(0.0, 0.0)
-            },
+            at_altitude(19.9),
+            at_altitude(1000.5),
+            at_airspeed(16.0),
+            at_airspeed(33.0),
+            at_airspeed(f32::NAN),
             wp(f32::INFINITY, 0.0),
             wp(0.0, f32::NAN),
             wp(0.0, 1e6),

@@ -273,30 +273,19 @@ mod tests {
     fn set_checks_name_type_and_range_and_reports_the_value_in_force() {
         let mut t = table();
         let gain = name("roll_gain");
-        assert_eq!(
-            t.set(&gain, Value::F32(1.5)),
-            SetParamResult::Accepted {
-                in_force: Value::F32(1.5)
-            }
-        );
-        assert_eq!(
-            t.set(&gain, Value::F32(2.5)),
-            SetParamResult::OutOfRange {
-                in_force: Value::F32(1.5)
-            }
-        );
-        assert_eq!(
-            t.set(&gain, Value::F32(f32::NAN)),
-            SetParamResult::OutOfRange {
-                in_force: Value::F32(1.5)
-            }
-        );
-        assert_eq!(
-            t.set(&gain, Value::I32(1)),
-            SetParamResult::WrongType {
-                in_force: Value::F32(1.5)
-            }
-        );
+        // Each set in turn, and what it answers: the value in force after it.
+        let in_force = Value::F32(1.5);
+        for (value, answer) in [
+            (in_force, SetParamResult::Accepted { in_force }),
+            (Value::F32(2.5), SetParamResult::OutOfRange { in_force }),
+            (
+                Value::F32(f32::NAN),
+                SetParamResult::OutOfRange { in_force },
+            ),
+            (Value::I32(1), SetParamResult::WrongType { in_force }),
+        ] {
+            assert_eq!(t.set(&gain, value), answer, "{value:?}");
+        }
         assert_eq!(
             t.set(&name("yaw_gain"), Value::F32(1.0)),
             SetParamResult::Unknown
