@@ -104,6 +104,17 @@ def mission_download():
     return items
 
 
+def mission_download_once_home_is_known(seconds=30):
+    """The mission's positions need home (the first GPS fix): ask until it is there."""
+    end = time.time() + seconds
+    while time.time() < end:
+        items = mission_download()
+        if items is not None:
+            return items
+        time.sleep(0.5)
+    return None
+
+
 def mission_upload(items):
     """The mission protocol from the ground's side: COUNT, then each item as asked."""
     m.mav.mission_count_send(1, 1, len(items), mav.MAV_MISSION_TYPE_MISSION)
@@ -193,13 +204,7 @@ if PHASE == "parked":
     seen, _, _ = collect(4)
     out["attitude_after_interval"] = seen.get("ATTITUDE")
 elif PHASE == "auto":
-    # The mission's positions need home (the first GPS fix): ask until it is there.
-    items = None
-    end = time.time() + 30
-    while items is None and time.time() < end:
-        items = mission_download()
-        if items is None:
-            time.sleep(0.5)
+    items = mission_download_once_home_is_known()
     out["mission"] = items
     out["upload_same"] = mission_upload(items) if items else None
     reached = []
@@ -228,12 +233,7 @@ elif PHASE == "auto":
     out["highest_relative_alt_mm"] = top_mm
 elif PHASE == "inflight":
     # A new mission in flight, flown; set-current; clear-all.
-    items = None
-    end = time.time() + 30
-    while items is None and time.time() < end:
-        items = mission_download()
-        if items is None:
-            time.sleep(0.5)
+    items = mission_download_once_home_is_known()
     out["mission"] = items
     # In the air on the first mission: its first waypoint reached.
     first_seq = next(i["seq"] for i in items if i["command"] == mav.MAV_CMD_NAV_WAYPOINT)
