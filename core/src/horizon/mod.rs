@@ -23,6 +23,7 @@ mod profile;
 mod region;
 #[cfg(test)]
 mod tests;
+mod upper;
 
 pub use attitude::HorizonAttitude;
 pub use camera::Camera;
@@ -540,9 +541,6 @@ impl HorizonDetector {
         // a shore, a field edge, the border of a glare-washed haze band) can out-score a faint
         // horizon above it; an edge of the same polarity and direction above the chosen one,
         // with textured ground between the two and smooth sky above, is the horizon.
-        let sky_brighter = libm::fabsf(wrap_angle(
-            chosen.horizon.camera_roll_rad - (chosen.line.angle + PI),
-        )) < 0.5 * PI;
         let context = LineContext {
             camera: &camera,
             geo,
@@ -554,6 +552,9 @@ impl HorizonDetector {
             max_angle_difference,
         };
         let mut chosen = chosen;
+        let sky_brighter = libm::fabsf(wrap_angle(
+            chosen.horizon.camera_roll_rad - (chosen.line.angle + PI),
+        )) < 0.5 * PI;
         let mut climbed = false;
         for _ in 0..if from_region { 0 } else { 2 } {
             match higher_edge(&context, ws.accumulator, &chosen, sky_brighter, min_votes) {
@@ -568,6 +569,18 @@ impl HorizonDetector {
                 }
                 None => break,
             }
+        }
+        if !climbed
+            && !from_region
+            && let Some(upper) = higher_step(&context, ws.grey, &chosen, sky_brighter)
+        {
+            chosen = Scored {
+                continues_track: self
+                    .track
+                    .is_some_and(|t| self.in_gate(&t.line, &upper.horizon)),
+                ..upper
+            };
+            climbed = true;
         }
 
         // Confidence: the line must split the frame into clearly different halves, be drawn
@@ -794,6 +807,60 @@ fn higher_edge(
         explained: separation.explained,
         coverage,
         score: separation.explained * coverage,
+        continues_track: false,
+    })
+}
+
+/// The step above `chosen` that is the real horizon, found on a profile across the line
+/// (see [`upper`]) when its edge points were too few for [`higher_edge`]: the same conditions
+/// on the regions (it separates the frame at least half as well, textured ground between the
+/// two lines under smooth sky), and on its length drawn by the profile instead of edges.
+fn higher_step(
+    c: &LineContext<'_>,
+    grey: &[u8],
+    chosen: &Scored,
+    sky_brighter: bool,
+) -> Option<Scored> {
+    let sky_ward = if sky_brighter { 1.0 } else { -1.0 };
+    let reach = (HIGHER_EDGE_REACH / c.rho.step) as usize;
+    let step = upper::highest_step(
+        grey,
+        c.geo,
+        c.camera,
+        chosen.line,
+        sky_ward,
+        c.rho.step,
+        reach,
+    )?;
+    let line = step.line;
+    let separation = hough::separation(c.samples, line, 2.0 * c.rho.step);
+    if separation.explained < 0.5 * chosen.explained {
+        return None;
+    }
+    let texture = hough::band_textures(c.samples, chosen.line, line, sky_ward, c.rho.step);
+    if texture.between_count < 8
+        || texture.above_count < 8
+        || texture.between < GROUND_TEXTURE_RATIO * texture.above + 0.5
+    {
+        return None;
+    }
+    let horizon = if sky_brighter {
+        HorizonLine {
+            camera_roll_rad: wrap_angle(line.angle + PI),
+            offset: -line.rho,
+        }
+    } else {
+        HorizonLine {
+            camera_roll_rad: wrap_angle(line.angle),
+            offset: line.rho,
+        }
+    };
+    Some(Scored {
+        line,
+        horizon,
+        explained: separation.explained,
+        coverage: chosen.coverage,
+        score: separation.explained * chosen.coverage,
         continues_track: false,
     })
 }

@@ -1,0 +1,184 @@
+//! The highest sky/ground step above a chosen line, found on a profile across it rather than by
+//! edge points.
+//!
+//! A strong ground edge (a wood's border, a shore, a field edge) out-votes a hazy horizon
+//! above it. Where the horizon's step is only 10–20 levels, its gradient at the working
+//! resolution falls under the edge threshold (which the strong edge and the ground's texture
+//! set) along most of its length, so it draws too few edge points to be a Hough candidate or
+//! to pass [`super::higher_edge`]'s coverage test (measured on `synth` `ground-edge` frames:
+//! 22–30 votes, 0.2 of its length). Averaged along the line, every pixel of the band counts: a
+//! step of a few levels stands out of a mean over a hundred pixels.
+
+use super::camera::Camera;
+use super::edges::Working;
+use super::hough::Line;
+
+/// Profile bins, one working pixel (one rho step) each ...
+const BINS: usize = 72;
+/// ... of which this many lie on the ground side of the chosen line.
+const BELOW: usize = 4;
+/// Bins averaged either side of a step.
+const SIDE: usize = 2;
+/// A step must be at least this many levels ...
+const MIN_STEP_LEVELS: f32 = 4.0;
+/// ... and this many times its own standard error.
+const MIN_STEP_SIGNIFICANCE: f32 = 6.0;
+/// A step of the other polarity this strong (a share of the found one's) between the chosen
+/// line and the found step rejects it.
+const OPPOSITE_SHARE: f32 = 0.5;
+/// The first bins above the chosen line belong to its own (smoothed) transition.
+const CLEAR_OF_CHOSEN: usize = 4;
+
+#[derive(Clone, Copy, Default)]
+struct Bin {
+    n: f32,
+    sum: f32,
+    sum2: f32,
+}
+
+impl Bin {
+    fn plus(self, o: Bin) -> Bin {
+        Bin {
+            n: self.n + o.n,
+            sum: self.sum + o.sum,
+            sum2: self.sum2 + o.sum2,
+        }
+    }
+
+    fn mean(&self) -> f32 {
+        self.sum / self.n.max(1.0)
+    }
+
+    /// Squared standard error of the mean.
+    fn error2(&self) -> f32 {
+        if self.n < 2.0 {
+            return f32::INFINITY;
+        }
+        let mean = self.mean();
+        let variance = (self.sum2 / self.n - mean * mean).max(0.0);
+        // A floor of one level: the 8-bit quantisation of each pixel.
+        (variance + 1.0) / self.n
+    }
+}
+
+/// A step found above the chosen line.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Step {
+    /// The line through the step (the chosen line's direction).
+    pub line: Line,
+    /// Levels from the ground side to the sky side.
+    pub contrast: f32,
+}
+
+/// The sky-most step of the sky's polarity within `reach_bins` rho steps above `chosen`
+/// (normal towards the brighter side, as the Hough stage's), on the working image `grey`.
+/// `sky_ward` is +1 when the sky is on the normal's side, −1 otherwise.
+pub(crate) fn highest_step(
+    grey: &[u8],
+    geo: Working,
+    camera: &Camera,
+    chosen: Line,
+    sky_ward: f32,
+    rho_step: f32,
+    reach_bins: usize,
+) -> Option<Step> {
+    if !(rho_step > 0.0) {
+        return None;
+    }
+    let reach = reach_bins.min(BINS - BELOW - SIDE);
+    let (nx, ny) = chosen.normal();
+    let mut bins = [Bin::default(); BINS];
+    let inverse = sky_ward / rho_step;
+    let low = -(BELOW as f32);
+    let high = (reach + SIDE) as f32;
+    // Without distortion the bin is linear in the pixel: one add per pixel.
+    let linear = camera.k1 == 0.0 && camera.k2 == 0.0;
+    let along_row = nx * geo.scale as f32 / camera.fx * inverse;
+    for (wy, row) in grey
+        .chunks_exact(geo.width.max(1))
+        .take(geo.height)
+        .enumerate()
+    {
+        let (u0, v) = geo.to_frame(0.0, wy as f32);
+        let row_start = ((u0 - camera.cx) / camera.fx * nx + (v - camera.cy) / camera.fy * ny
+            - chosen.rho)
+            * inverse;
+        for (wx, &value) in row.iter().enumerate() {
+            let s = if linear {
+                row_start + wx as f32 * along_row
+            } else {
+                let (u, v) = geo.to_frame(wx as f32, wy as f32);
+                let Some((x, y)) = camera.undistort_pixel(u, v) else {
+                    continue;
+                };
+                (x * nx + y * ny - chosen.rho) * inverse
+            };
+            if !(low..high).contains(&s) {
+                continue;
+            }
+            if let Some(bin) = bins.get_mut((s - low) as usize) {
+                let value = f32::from(value);
+                bin.n += 1.0;
+                bin.sum += value;
+                bin.sum2 += value * value;
+            }
+        }
+    }
+    // `contrast` is signed so that the sky's polarity is positive: the sky brightens across
+    // the step when it is on the normal's (brighter) side, darkens otherwise.
+    let polarity = if sky_ward > 0.0 { 1.0 } else { -1.0 };
+    let step_at = |k: usize| -> Option<(f32, f32)> {
+        let side = |from: usize| {
+            bins.get(from..from + SIDE)
+                .map(|b| b.iter().fold(Bin::default(), |a, &x| a.plus(x)))
+        };
+        let (ground, sky) = (side(k.checked_sub(SIDE)?)?, side(k)?);
+        if ground.n < 8.0 || sky.n < 8.0 {
+            return None;
+        }
+        let contrast = polarity * (sky.mean() - ground.mean());
+        let error = libm::sqrtf(ground.error2() + sky.error2());
+        Some((contrast, contrast / error))
+    };
+    let first = BELOW + CLEAR_OF_CHOSEN;
+    let mut k = BELOW + reach;
+    while k >= first {
+        if let Some((contrast, significance)) = step_at(k)
+            && contrast >= MIN_STEP_LEVELS
+            && significance >= MIN_STEP_SIGNIFICANCE
+        {
+            // The sharpest boundary of this step, within a bin or two.
+            let mut best = (k, contrast);
+            for j in k.saturating_sub(2)..=k + 2 {
+                if let Some((c, _)) = step_at(j)
+                    && c > best.1
+                {
+                    best = (j, c);
+                }
+            }
+            // One transition from ground to sky: a band with a step of the other polarity
+            // as strong as half of this one is not ground under the sky but a stripe, a
+            // cloud or a bar (a dark band in the sky has a step of the sky's polarity at its
+            // top). Only below the step: the sky itself darkens away from the horizon.
+            let opposite = (first..=best.0.saturating_sub(SIDE)).any(|j| {
+                step_at(j).is_some_and(|(c, sig)| {
+                    -c >= MIN_STEP_LEVELS.max(OPPOSITE_SHARE * best.1)
+                        && -sig >= MIN_STEP_SIGNIFICANCE
+                })
+            });
+            if opposite {
+                return None;
+            }
+            let offset = (best.0 as f32 - BELOW as f32) * rho_step;
+            return Some(Step {
+                line: Line {
+                    angle: chosen.angle,
+                    rho: chosen.rho + sky_ward * offset,
+                },
+                contrast: best.1,
+            });
+        }
+        k -= 1;
+    }
+    None
+}
