@@ -570,10 +570,23 @@ impl HorizonDetector {
                 None => break,
             }
         }
+        let across = |line: Line| {
+            upper::Profile::measure(
+                ws.grey,
+                geo,
+                &camera,
+                line,
+                if sky_brighter { 1.0 } else { -1.0 },
+                rho.step,
+                (HIGHER_EDGE_REACH / rho.step) as usize,
+            )
+        };
+        let mut profile = across(chosen.line);
         if !climbed
             && !from_region
-            && let Some(upper) = higher_step(&context, ws.grey, &chosen, sky_brighter)
+            && let Some(upper) = higher_step(&context, &profile, &chosen, sky_brighter)
         {
+            profile = across(upper.line);
             chosen = Scored {
                 continues_track: self
                     .track
@@ -612,6 +625,9 @@ impl HorizonDetector {
         };
         if edge_stats.dropped > 0 {
             confidence *= 0.8;
+        }
+        if profile.striped() {
+            confidence *= STRIPED_CONFIDENCE;
         }
         if jumped {
             confidence *= 0.7;
@@ -817,21 +833,12 @@ fn higher_edge(
 /// two lines under smooth sky), and on its length drawn by the profile instead of edges.
 fn higher_step(
     c: &LineContext<'_>,
-    grey: &[u8],
+    profile: &upper::Profile,
     chosen: &Scored,
     sky_brighter: bool,
 ) -> Option<Scored> {
     let sky_ward = if sky_brighter { 1.0 } else { -1.0 };
-    let reach = (HIGHER_EDGE_REACH / c.rho.step) as usize;
-    let step = upper::highest_step(
-        grey,
-        c.geo,
-        c.camera,
-        chosen.line,
-        sky_ward,
-        c.rho.step,
-        reach,
-    )?;
+    let step = profile.highest_step()?;
     let line = step.line;
     let separation = hough::separation(c.samples, line, 2.0 * c.rho.step);
     if separation.explained < 0.5 * chosen.explained {
@@ -891,6 +898,10 @@ fn noise_level(
         percentile
     }
 }
+
+/// Confidence kept by a line under a striped sky (see [`upper::Profile::striped`]): a
+/// crest next to the horizon explains nearly as much of the frame, and it is not known which.
+const STRIPED_CONFIDENCE: f32 = 0.25;
 
 /// The region search runs when no edge line explains this share of the frame's variance ...
 const REGION_TRIGGER: f32 = 0.3;

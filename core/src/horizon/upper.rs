@@ -23,6 +23,8 @@ const SIDE: usize = 2;
 const MIN_STEP_LEVELS: f32 = 4.0;
 /// ... and this many times its own standard error.
 const MIN_STEP_SIGNIFICANCE: f32 = 6.0;
+/// Polarity changes of clear steps on the sky side that make it striped.
+const STRIPE_ALTERNATIONS: usize = 3;
 /// A step of the other polarity this strong (a share of the found one's) between the chosen
 /// line and the found step rejects it.
 const OPPOSITE_SHARE: f32 = 0.5;
@@ -70,66 +72,87 @@ pub(crate) struct Step {
     pub contrast: f32,
 }
 
-/// The sky-most step of the sky's polarity within `reach_bins` rho steps above `chosen`
-/// (normal towards the brighter side, as the Hough stage's), on the working image `grey`.
-/// `sky_ward` is +1 when the sky is on the normal's side, −1 otherwise.
-pub(crate) fn highest_step(
-    grey: &[u8],
-    geo: Working,
-    camera: &Camera,
-    chosen: Line,
+/// Mean luma across a line, one bin per rho step, from [`BELOW`] bins on its ground side to
+/// its reach on the sky side, on the working image.
+pub(crate) struct Profile {
+    bins: [Bin; BINS],
+    reach: usize,
+    /// +1 when the sky is on the line's normal's side, −1 otherwise.
     sky_ward: f32,
+    line: Line,
     rho_step: f32,
-    reach_bins: usize,
-) -> Option<Step> {
-    if !(rho_step > 0.0) {
-        return None;
-    }
-    let reach = reach_bins.min(BINS - BELOW - SIDE);
-    let (nx, ny) = chosen.normal();
-    let mut bins = [Bin::default(); BINS];
-    let inverse = sky_ward / rho_step;
-    let low = -(BELOW as f32);
-    let high = (reach + SIDE) as f32;
-    // Without distortion the bin is linear in the pixel: one add per pixel.
-    let linear = camera.k1 == 0.0 && camera.k2 == 0.0;
-    let along_row = nx * geo.scale as f32 / camera.fx * inverse;
-    for (wy, row) in grey
-        .chunks_exact(geo.width.max(1))
-        .take(geo.height)
-        .enumerate()
-    {
-        let (u0, v) = geo.to_frame(0.0, wy as f32);
-        let row_start = ((u0 - camera.cx) / camera.fx * nx + (v - camera.cy) / camera.fy * ny
-            - chosen.rho)
-            * inverse;
-        for (wx, &value) in row.iter().enumerate() {
-            let s = if linear {
-                row_start + wx as f32 * along_row
-            } else {
-                let (u, v) = geo.to_frame(wx as f32, wy as f32);
-                let Some((x, y)) = camera.undistort_pixel(u, v) else {
-                    continue;
+}
+
+impl Profile {
+    /// The profile across `chosen` (normal towards the brighter side, as the Hough stage's)
+    /// up to `reach_bins` rho steps on its sky side, `sky_ward` (±1) saying which side that is.
+    pub(crate) fn measure(
+        grey: &[u8],
+        geo: Working,
+        camera: &Camera,
+        chosen: Line,
+        sky_ward: f32,
+        rho_step: f32,
+        reach_bins: usize,
+    ) -> Profile {
+        let reach = reach_bins.min(BINS - BELOW - SIDE);
+        let mut profile = Profile {
+            bins: [Bin::default(); BINS],
+            reach,
+            sky_ward,
+            line: chosen,
+            rho_step,
+        };
+        if !(rho_step > 0.0) {
+            return profile;
+        }
+        let (nx, ny) = chosen.normal();
+        let inverse = sky_ward / rho_step;
+        let low = -(BELOW as f32);
+        let high = (reach + SIDE) as f32;
+        // Without distortion the bin is linear in the pixel: one add per pixel.
+        let linear = camera.k1 == 0.0 && camera.k2 == 0.0;
+        let along_row = nx * geo.scale as f32 / camera.fx * inverse;
+        for (wy, row) in grey
+            .chunks_exact(geo.width.max(1))
+            .take(geo.height)
+            .enumerate()
+        {
+            let (u0, v) = geo.to_frame(0.0, wy as f32);
+            let row_start = ((u0 - camera.cx) / camera.fx * nx + (v - camera.cy) / camera.fy * ny
+                - chosen.rho)
+                * inverse;
+            for (wx, &value) in row.iter().enumerate() {
+                let s = if linear {
+                    row_start + wx as f32 * along_row
+                } else {
+                    let (u, v) = geo.to_frame(wx as f32, wy as f32);
+                    let Some((x, y)) = camera.undistort_pixel(u, v) else {
+                        continue;
+                    };
+                    (x * nx + y * ny - chosen.rho) * inverse
                 };
-                (x * nx + y * ny - chosen.rho) * inverse
-            };
-            if !(low..high).contains(&s) {
-                continue;
-            }
-            if let Some(bin) = bins.get_mut((s - low) as usize) {
-                let value = f32::from(value);
-                bin.n += 1.0;
-                bin.sum += value;
-                bin.sum2 += value * value;
+                if !(low..high).contains(&s) {
+                    continue;
+                }
+                if let Some(bin) = profile.bins.get_mut((s - low) as usize) {
+                    let value = f32::from(value);
+                    bin.n += 1.0;
+                    bin.sum += value;
+                    bin.sum2 += value * value;
+                }
             }
         }
+        profile
     }
-    // `contrast` is signed so that the sky's polarity is positive: the sky brightens across
-    // the step when it is on the normal's (brighter) side, darkens otherwise.
-    let polarity = if sky_ward > 0.0 { 1.0 } else { -1.0 };
-    let step_at = |k: usize| -> Option<(f32, f32)> {
+
+    /// The step at bin boundary `k`: its contrast (positive for the sky's polarity) and
+    /// that contrast over its standard error.
+    fn step_at(&self, k: usize) -> Option<(f32, f32)> {
+        let polarity = if self.sky_ward > 0.0 { 1.0 } else { -1.0 };
         let side = |from: usize| {
-            bins.get(from..from + SIDE)
+            self.bins
+                .get(from..from + SIDE)
                 .map(|b| b.iter().fold(Bin::default(), |a, &x| a.plus(x)))
         };
         let (ground, sky) = (side(k.checked_sub(SIDE)?)?, side(k)?);
@@ -139,46 +162,81 @@ pub(crate) fn highest_step(
         let contrast = polarity * (sky.mean() - ground.mean());
         let error = libm::sqrtf(ground.error2() + sky.error2());
         Some((contrast, contrast / error))
-    };
-    let first = BELOW + CLEAR_OF_CHOSEN;
-    let mut k = BELOW + reach;
-    while k >= first {
-        if let Some((contrast, significance)) = step_at(k)
-            && contrast >= MIN_STEP_LEVELS
-            && significance >= MIN_STEP_SIGNIFICANCE
-        {
-            // The sharpest boundary of this step, within a bin or two.
-            let mut best = (k, contrast);
-            for j in k.saturating_sub(2)..=k + 2 {
-                if let Some((c, _)) = step_at(j)
-                    && c > best.1
-                {
-                    best = (j, c);
-                }
-            }
-            // One transition from ground to sky: a band with a step of the other polarity
-            // as strong as half of this one is not ground under the sky but a stripe, a
-            // cloud or a bar (a dark band in the sky has a step of the sky's polarity at its
-            // top). Only below the step: the sky itself darkens away from the horizon.
-            let opposite = (first..=best.0.saturating_sub(SIDE)).any(|j| {
-                step_at(j).is_some_and(|(c, sig)| {
-                    -c >= MIN_STEP_LEVELS.max(OPPOSITE_SHARE * best.1)
-                        && -sig >= MIN_STEP_SIGNIFICANCE
-                })
-            });
-            if opposite {
-                return None;
-            }
-            let offset = (best.0 as f32 - BELOW as f32) * rho_step;
-            return Some(Step {
-                line: Line {
-                    angle: chosen.angle,
-                    rho: chosen.rho + sky_ward * offset,
-                },
-                contrast: best.1,
-            });
-        }
-        k -= 1;
     }
-    None
+
+    /// Whether the sky side is striped: clear steps of alternating polarity, at least
+    /// [`STRIPE_ALTERNATIONS`] changes. A periodic pattern nearly parallel to the horizon
+    /// (interference) puts its crests next to the horizon, where they out-explain it and
+    /// the line found is one of them; the sky above a real horizon has no such steps.
+    pub(crate) fn striped(&self) -> bool {
+        let mut last_sign = 0.0f32;
+        let mut alternations = 0;
+        let mut k = BELOW + CLEAR_OF_CHOSEN;
+        while k <= BELOW + self.reach {
+            match self.step_at(k) {
+                Some((c, sig))
+                    if libm::fabsf(c) >= MIN_STEP_LEVELS
+                        && libm::fabsf(sig) >= MIN_STEP_SIGNIFICANCE =>
+                {
+                    let sign = if c > 0.0 { 1.0 } else { -1.0 };
+                    if sign != last_sign {
+                        if last_sign != 0.0 {
+                            alternations += 1;
+                        }
+                        last_sign = sign;
+                    }
+                    // One step counts once: skip past its window.
+                    k += SIDE;
+                }
+                _ => k += 1,
+            }
+        }
+        alternations >= STRIPE_ALTERNATIONS
+    }
+
+    /// The sky-most step of the sky's polarity within the reach above the line.
+    pub(crate) fn highest_step(&self) -> Option<Step> {
+        let first = BELOW + CLEAR_OF_CHOSEN;
+        let mut k = BELOW + self.reach;
+        while k >= first {
+            if let Some((contrast, significance)) = self.step_at(k)
+                && contrast >= MIN_STEP_LEVELS
+                && significance >= MIN_STEP_SIGNIFICANCE
+            {
+                // The sharpest boundary of this step, within a bin or two.
+                let mut best = (k, contrast);
+                for j in k.saturating_sub(2)..=k + 2 {
+                    if let Some((c, _)) = self.step_at(j)
+                        && c > best.1
+                    {
+                        best = (j, c);
+                    }
+                }
+                // One transition from ground to sky: a band with a step of the other
+                // polarity as strong as half of this one is not ground under the sky but a
+                // stripe, a cloud or a bar (a dark band in the sky has a step of the sky's
+                // polarity at its top). Only below the step: the sky itself darkens away
+                // from the horizon.
+                let opposite = (first..=best.0.saturating_sub(SIDE)).any(|j| {
+                    self.step_at(j).is_some_and(|(c, sig)| {
+                        -c >= MIN_STEP_LEVELS.max(OPPOSITE_SHARE * best.1)
+                            && -sig >= MIN_STEP_SIGNIFICANCE
+                    })
+                });
+                if opposite {
+                    return None;
+                }
+                let offset = (best.0 as f32 - BELOW as f32) * self.rho_step;
+                return Some(Step {
+                    line: Line {
+                        angle: self.line.angle,
+                        rho: self.line.rho + self.sky_ward * offset,
+                    },
+                    contrast: best.1,
+                });
+            }
+            k -= 1;
+        }
+        None
+    }
 }
