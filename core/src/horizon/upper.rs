@@ -122,7 +122,28 @@ impl Profile {
             let row_start = ((u0 - camera.cx) / camera.fx * nx + (v - camera.cy) / camera.fy * ny
                 - chosen.rho)
                 * inverse;
-            for (wx, &value) in row.iter().enumerate() {
+            // Only the columns whose bin is in range (a band across the frame); a column
+            // either side of the computed range, and the test below, absorb rounding.
+            let columns = if !linear {
+                0..row.len()
+            } else if libm::fabsf(along_row) < 1e-6 {
+                if (low..high).contains(&row_start) {
+                    0..row.len()
+                } else {
+                    0..0
+                }
+            } else {
+                let (a, b) = (
+                    (low - row_start) / along_row,
+                    (high - row_start) / along_row,
+                );
+                let (first, last) = (a.min(b) - 1.0, a.max(b) + 1.0);
+                let width = row.len() as f32;
+                (first.clamp(0.0, width) as usize)..(last.clamp(0.0, width) as usize)
+            };
+            let start = columns.start;
+            for (wx, &value) in row.get(columns).unwrap_or(&[]).iter().enumerate() {
+                let wx = wx + start;
                 let s = if linear {
                     row_start + wx as f32 * along_row
                 } else {
