@@ -841,7 +841,18 @@ fn higher_step(
     let step = profile.highest_step()?;
     let line = step.line;
     let separation = hough::separation(c.samples, line, 2.0 * c.rho.step);
-    if separation.explained < 0.5 * chosen.explained {
+    // Sky, far ground and near ground are three regions: a step that splits the frame less
+    // than half as well as the ground edge may still be the clear boundary of what lies
+    // above that edge (sky over a wide hazy band), which is what the horizon must be.
+    let (nx, ny) = chosen.line.normal();
+    let margin = 2.0 * c.rho.step;
+    let above_chosen = hough::separation_of(c.samples, line, margin, |s| {
+        sky_ward * (s.x * nx + s.y * ny - chosen.line.rho) > margin
+    });
+    if separation.explained < MIN_EXPLAINED
+        || (separation.explained < 0.5 * chosen.explained
+            && above_chosen.explained < ABOVE_EDGE_EXPLAINED)
+    {
         return None;
     }
     let texture = hough::band_textures(c.samples, chosen.line, line, sky_ward, c.rho.step);
@@ -871,6 +882,10 @@ fn higher_step(
         continues_track: false,
     })
 }
+
+/// Share of the variance above a ground edge that a step found there must explain to be taken
+/// for the horizon when it splits the whole frame less than half as well as the edge.
+const ABOVE_EDGE_EXPLAINED: f32 = 0.5;
 
 /// The frame's noise level in units of the Sobel magnitude: the quiet part of the gradient
 /// distribution ([`NOISE_PERCENTILE`]), but no more than white noise with the frame's
