@@ -362,10 +362,24 @@ impl HorizonDetector {
         }
         self.working_scale = geo.scale;
         let mean_focal = 0.5 * (camera.fx + camera.fy);
+        let max_radius2 = undistorted_corner_radius2(&camera, width, height);
+        let step = geo.scale as f32 / mean_focal;
+        // Every line through the frame lies within its undistorted corner radius of the
+        // centre: the accumulator needs no more rho bins than that (a third fewer cells to
+        // clear and scan than the workspace's bound for a centred, undistorted camera).
+        let needed = libm::ceilf(libm::sqrtf(max_radius2) / step) + 1.0;
         let rho = RhoAxis {
-            step: geo.scale as f32 / mean_focal,
-            half: rho_half_bins(geo),
+            step,
+            half: if needed.is_finite() && needed >= 1.0 {
+                (needed as usize).min(rho_half_bins(geo))
+            } else {
+                rho_half_bins(geo)
+            },
         };
+        let accumulator = ws
+            .accumulator
+            .get_mut(..ANGLE_BINS * rho.bins())
+            .unwrap_or(&mut []);
 
         // 2–3: gradient, thinned and undistorted edge points.
         let perimeter = geo.width + geo.height;
@@ -400,7 +414,7 @@ impl HorizonDetector {
 
         // 4–5: direction-restricted Hough voting and candidates.
         let window = usize::from(self.config.vote_window_deg).min(ANGLE_BINS / 4);
-        hough::vote(edge_points, &self.tables, rho, window, ws.accumulator);
+        hough::vote(edge_points, &self.tables, rho, window, accumulator);
         let mut peaks = [Peak::default(); MAX_CANDIDATES];
         let wanted = usize::from(self.config.candidates).clamp(1, MAX_CANDIDATES - 2);
         // A horizon shorter than a sixth of the frame width is not worth validating.
@@ -410,8 +424,9 @@ impl HorizonDetector {
         // lines that out-vote the horizon and would take every candidate slot, each one
         // explaining nothing, so that no line at the horizon's angle was validated.
         let mut found = [Peak::default(); MAX_CANDIDATES];
+        let accumulator: &[u16] = accumulator;
         let found_count = hough::find_peaks(
-            ws.accumulator,
+            accumulator,
             rho,
             min_votes,
             found
@@ -439,7 +454,7 @@ impl HorizonDetector {
                 let rho_window =
                     (libm::ceilf(self.config.gate_offset / rho.step) as usize).min(rho.bins());
                 if let Some(p) = hough::peak_near(
-                    ws.accumulator,
+                    accumulator,
                     rho,
                     hough::angle_bin(angle),
                     rho_index,
@@ -459,7 +474,6 @@ impl HorizonDetector {
         // 6: refine and validate each candidate.
         let sample_count = edges::collect_samples(frame, ws.grey, geo, &camera, ws.samples);
         let samples = ws.samples.get(..sample_count).unwrap_or(&[]);
-        let max_radius2 = undistorted_corner_radius2(&camera, width, height);
         let bands = [3.0 * rho.step, 1.5 * rho.step];
         // Wide: aliased edges (a staircase) have Sobel directions 20° and more off the line; the
         // distance band does the selecting.
@@ -557,7 +571,7 @@ impl HorizonDetector {
         )) < 0.5 * PI;
         let mut climbed = false;
         for _ in 0..if from_region { 0 } else { 2 } {
-            match higher_edge(&context, ws.accumulator, &chosen, sky_brighter, min_votes) {
+            match higher_edge(&context, accumulator, &chosen, sky_brighter, min_votes) {
                 Some(upper) => {
                     chosen = Scored {
                         continues_track: self
