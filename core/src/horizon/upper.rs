@@ -105,7 +105,7 @@ impl Profile {
             line: chosen,
             rho_step,
         };
-        if !(rho_step > 0.0) {
+        if rho_step.is_nan() || rho_step <= 0.0 {
             return profile;
         }
         let (nx, ny) = chosen.normal();
