@@ -358,10 +358,20 @@ pub(crate) const SATURATED: f32 = 248.0;
 /// Splits the samples by the line (leaving out a band `band` wide around it, where pixels mix
 /// both sides) and measures how well the two sides separate.
 pub(crate) fn separation(samples: &[Sample], line: Line, band: f32) -> Separation {
+    separation_of(samples, line, band, |_| true)
+}
+
+/// [`separation`] over the samples `keep` accepts.
+pub(crate) fn separation_of(
+    samples: &[Sample],
+    line: Line,
+    band: f32,
+    keep: impl Fn(&Sample) -> bool,
+) -> Separation {
     let (nx, ny) = line.normal();
     let mut bright = Moments::default();
     let mut dark = Moments::default();
-    for s in samples {
+    for s in samples.iter().filter(|s| keep(s)) {
         // Clipped pixels (glare, over-exposure) say nothing about sky or ground, and a
         // saturated blob would otherwise dominate the variance.
         if s.luma >= SATURATED {

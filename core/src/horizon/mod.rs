@@ -23,6 +23,7 @@ mod profile;
 mod region;
 #[cfg(test)]
 mod tests;
+mod upper;
 
 pub use attitude::HorizonAttitude;
 pub use camera::Camera;
@@ -361,10 +362,24 @@ impl HorizonDetector {
         }
         self.working_scale = geo.scale;
         let mean_focal = 0.5 * (camera.fx + camera.fy);
+        let max_radius2 = undistorted_corner_radius2(&camera, width, height);
+        let step = geo.scale as f32 / mean_focal;
+        // Every line through the frame lies within its undistorted corner radius of the
+        // centre: the accumulator needs no more rho bins than that (a third fewer cells to
+        // clear and scan than the workspace's bound for a centred, undistorted camera).
+        let needed = libm::ceilf(libm::sqrtf(max_radius2) / step) + 1.0;
         let rho = RhoAxis {
-            step: geo.scale as f32 / mean_focal,
-            half: rho_half_bins(geo),
+            step,
+            half: if needed.is_finite() && needed >= 1.0 {
+                (needed as usize).min(rho_half_bins(geo))
+            } else {
+                rho_half_bins(geo)
+            },
         };
+        let accumulator = ws
+            .accumulator
+            .get_mut(..ANGLE_BINS * rho.bins())
+            .unwrap_or(&mut []);
 
         // 2–3: gradient, thinned and undistorted edge points.
         let perimeter = geo.width + geo.height;
@@ -399,7 +414,7 @@ impl HorizonDetector {
 
         // 4–5: direction-restricted Hough voting and candidates.
         let window = usize::from(self.config.vote_window_deg).min(ANGLE_BINS / 4);
-        hough::vote(edge_points, &self.tables, rho, window, ws.accumulator);
+        hough::vote(edge_points, &self.tables, rho, window, accumulator);
         let mut peaks = [Peak::default(); MAX_CANDIDATES];
         let wanted = usize::from(self.config.candidates).clamp(1, MAX_CANDIDATES - 2);
         // A horizon shorter than a sixth of the frame width is not worth validating.
@@ -409,8 +424,9 @@ impl HorizonDetector {
         // lines that out-vote the horizon and would take every candidate slot, each one
         // explaining nothing, so that no line at the horizon's angle was validated.
         let mut found = [Peak::default(); MAX_CANDIDATES];
+        let accumulator: &[u16] = accumulator;
         let found_count = hough::find_peaks(
-            ws.accumulator,
+            accumulator,
             rho,
             min_votes,
             found
@@ -438,7 +454,7 @@ impl HorizonDetector {
                 let rho_window =
                     (libm::ceilf(self.config.gate_offset / rho.step) as usize).min(rho.bins());
                 if let Some(p) = hough::peak_near(
-                    ws.accumulator,
+                    accumulator,
                     rho,
                     hough::angle_bin(angle),
                     rho_index,
@@ -458,7 +474,6 @@ impl HorizonDetector {
         // 6: refine and validate each candidate.
         let sample_count = edges::collect_samples(frame, ws.grey, geo, &camera, ws.samples);
         let samples = ws.samples.get(..sample_count).unwrap_or(&[]);
-        let max_radius2 = undistorted_corner_radius2(&camera, width, height);
         let bands = [3.0 * rho.step, 1.5 * rho.step];
         // Wide: aliased edges (a staircase) have Sobel directions 20° and more off the line; the
         // distance band does the selecting.
@@ -540,9 +555,6 @@ impl HorizonDetector {
         // a shore, a field edge, the border of a glare-washed haze band) can out-score a faint
         // horizon above it; an edge of the same polarity and direction above the chosen one,
         // with textured ground between the two and smooth sky above, is the horizon.
-        let sky_brighter = libm::fabsf(wrap_angle(
-            chosen.horizon.camera_roll_rad - (chosen.line.angle + PI),
-        )) < 0.5 * PI;
         let context = LineContext {
             camera: &camera,
             geo,
@@ -554,9 +566,12 @@ impl HorizonDetector {
             max_angle_difference,
         };
         let mut chosen = chosen;
+        let sky_brighter = libm::fabsf(wrap_angle(
+            chosen.horizon.camera_roll_rad - (chosen.line.angle + PI),
+        )) < 0.5 * PI;
         let mut climbed = false;
         for _ in 0..if from_region { 0 } else { 2 } {
-            match higher_edge(&context, ws.accumulator, &chosen, sky_brighter, min_votes) {
+            match higher_edge(&context, accumulator, &chosen, sky_brighter, min_votes) {
                 Some(upper) => {
                     chosen = Scored {
                         continues_track: self
@@ -568,6 +583,31 @@ impl HorizonDetector {
                 }
                 None => break,
             }
+        }
+        let across = |line: Line| {
+            upper::Profile::measure(
+                ws.grey,
+                geo,
+                &camera,
+                line,
+                if sky_brighter { 1.0 } else { -1.0 },
+                rho.step,
+                (HIGHER_EDGE_REACH / rho.step) as usize,
+            )
+        };
+        let mut profile = across(chosen.line);
+        if !climbed
+            && !from_region
+            && let Some(upper) = higher_step(&context, &profile, &chosen, sky_brighter)
+        {
+            profile = across(upper.line);
+            chosen = Scored {
+                continues_track: self
+                    .track
+                    .is_some_and(|t| self.in_gate(&t.line, &upper.horizon)),
+                ..upper
+            };
+            climbed = true;
         }
 
         // Confidence: the line must split the frame into clearly different halves, be drawn
@@ -599,6 +639,9 @@ impl HorizonDetector {
         };
         if edge_stats.dropped > 0 {
             confidence *= 0.8;
+        }
+        if profile.striped() {
+            confidence *= STRIPED_CONFIDENCE;
         }
         if jumped {
             confidence *= 0.7;
@@ -798,6 +841,66 @@ fn higher_edge(
     })
 }
 
+/// The step above `chosen` that is the real horizon, found on a profile across the line
+/// (see [`upper`]) when its edge points were too few for [`higher_edge`]: the same conditions
+/// on the regions (it separates the frame at least half as well, textured ground between the
+/// two lines under smooth sky), and on its length drawn by the profile instead of edges.
+fn higher_step(
+    c: &LineContext<'_>,
+    profile: &upper::Profile,
+    chosen: &Scored,
+    sky_brighter: bool,
+) -> Option<Scored> {
+    let sky_ward = if sky_brighter { 1.0 } else { -1.0 };
+    let step = profile.highest_step()?;
+    let line = step.line;
+    let separation = hough::separation(c.samples, line, 2.0 * c.rho.step);
+    // Sky, far ground and near ground are three regions: a step that splits the frame less
+    // than half as well as the ground edge may still be the clear boundary of what lies
+    // above that edge (sky over a wide hazy band), which is what the horizon must be.
+    let (nx, ny) = chosen.line.normal();
+    let margin = 2.0 * c.rho.step;
+    let above_chosen = hough::separation_of(c.samples, line, margin, |s| {
+        sky_ward * (s.x * nx + s.y * ny - chosen.line.rho) > margin
+    });
+    if separation.explained < MIN_EXPLAINED
+        || (separation.explained < 0.5 * chosen.explained
+            && above_chosen.explained < ABOVE_EDGE_EXPLAINED)
+    {
+        return None;
+    }
+    let texture = hough::band_textures(c.samples, chosen.line, line, sky_ward, c.rho.step);
+    if texture.between_count < 8
+        || texture.above_count < 8
+        || texture.between < GROUND_TEXTURE_RATIO * texture.above + 0.5
+    {
+        return None;
+    }
+    let horizon = if sky_brighter {
+        HorizonLine {
+            camera_roll_rad: wrap_angle(line.angle + PI),
+            offset: -line.rho,
+        }
+    } else {
+        HorizonLine {
+            camera_roll_rad: wrap_angle(line.angle),
+            offset: line.rho,
+        }
+    };
+    Some(Scored {
+        line,
+        horizon,
+        explained: separation.explained,
+        coverage: chosen.coverage,
+        score: separation.explained * chosen.coverage,
+        continues_track: false,
+    })
+}
+
+/// Share of the variance above a ground edge that a step found there must explain to be taken
+/// for the horizon when it splits the whole frame less than half as well as the edge.
+const ABOVE_EDGE_EXPLAINED: f32 = 0.5;
+
 /// The frame's noise level in units of the Sobel magnitude: the quiet part of the gradient
 /// distribution ([`NOISE_PERCENTILE`]), but no more than white noise with the frame's
 /// Laplacian would give. White noise of σ gives a 30th percentile of about 3.7σ and a
@@ -824,6 +927,10 @@ fn noise_level(
         percentile
     }
 }
+
+/// Confidence kept by a line under a striped sky (see [`upper::Profile::striped`]): a
+/// crest next to the horizon explains nearly as much of the frame, and it is not known which.
+const STRIPED_CONFIDENCE: f32 = 0.25;
 
 /// The region search runs when no edge line explains this share of the frame's variance ...
 const REGION_TRIGGER: f32 = 0.3;

@@ -46,10 +46,16 @@ pub enum Degradation {
     /// first ramps, quantised coarsely; lost macroblocks concealed by repeating a neighbour;
     /// rows of blocks torn sideways.
     Blocks,
+    /// Interference whose crests run within ±6° of the horizon (issue 17's hardest case:
+    /// every crest is a long straight edge nearly parallel to it, next to it).
+    ParallelInterference,
+    /// A dark near field ending at a straight line 6–15° below the horizon, with light
+    /// hazy fields beyond it (issue 17): the ground edge is far stronger than the horizon.
+    GroundEdge,
 }
 
 impl Degradation {
-    pub const SETS: [Degradation; 13] = [
+    pub const SETS: [Degradation; 15] = [
         Degradation::Clean,
         Degradation::SensorNoise,
         Degradation::TransmissionNoise,
@@ -63,6 +69,8 @@ impl Degradation {
         Degradation::Haze,
         Degradation::Interference,
         Degradation::Blocks,
+        Degradation::ParallelInterference,
+        Degradation::GroundEdge,
     ];
 
     pub fn name(self) -> &'static str {
@@ -81,6 +89,8 @@ impl Degradation {
             Degradation::Mixed => "mixed",
             Degradation::Interference => "interference",
             Degradation::Blocks => "blocks",
+            Degradation::ParallelInterference => "parallel-interference",
+            Degradation::GroundEdge => "ground-edge",
         }
     }
 
@@ -291,6 +301,13 @@ impl Renderer {
             0.3
         };
         let world = self.seed;
+        // The near field's far boundary: a straight line across the view, perpendicular to
+        // the heading, at a depression drifting between 6° and 15°.
+        let ground_edge_m = (self.degradation == Degradation::GroundEdge).then(|| {
+            let phase = (self.seed % 1000) as f32;
+            let depression = 10.5 + 4.5 * (index as f32 * 0.11 + phase).sin();
+            ALTITUDE_M / depression.to_radians().tan()
+        });
         let haze = if self.degradation == Degradation::Haze {
             Haze {
                 distance_m: 500.0,
@@ -313,6 +330,10 @@ impl Renderer {
             if wd > 0.0 {
                 let t = ALTITUDE_M / wd;
                 let (gn, ge) = (north + t * wn, east + t * we);
+                if let Some(edge) = ground_edge_m {
+                    let ahead = t * (wn * ch + we * sh);
+                    return edge_field_colour(world, gn, ge, t * length, ahead < edge);
+                }
                 return ground_colour(world, gn, ge, t * length, roads, haze);
             }
             let elevation = (-wd / length).clamp(0.0, 1.0);
@@ -449,7 +470,13 @@ impl Renderer {
         // Interference and blocks are not part of `mixed` (its figures stay comparable with
         // the runs before they were added).
         if self.degradation == Degradation::Interference {
-            interference(pixels, w, h, index, rng);
+            let angle = rng.range(-1.2, 1.2);
+            interference(pixels, w, h, index, angle, rng);
+        }
+        if self.degradation == Degradation::ParallelInterference {
+            // Crests along the horizon's image direction, which is at −roll to the rows.
+            let angle = -roll + rng.range(-6.0, 6.0).to_radians();
+            interference(pixels, w, h, index, angle, rng);
         }
         if self.degradation == Degradation::Blocks {
             blocks(pixels, w, h, rng);
@@ -635,13 +662,40 @@ fn ground_colour(
     std::array::from_fn(|i| (c[i] + texture) * (1.0 - k) + haze.colour[i] * k)
 }
 
+/// The `ground-edge` world: dark woodland up to a straight line, light fields beyond it that
+/// fade into a haze nearly as bright as the sky at the horizon, so the horizon is a step of
+/// 10–30 levels and the woodland's edge one of about 100.
+fn edge_field_colour(world: u64, north: f32, east: f32, distance: f32, near: bool) -> [f32; 3] {
+    let texture = (fbm(world ^ 0x7E7, north / 6.0, east / 6.0, 3) - 0.5) * 40.0;
+    let base = if near {
+        [42.0, 58.0, 34.0]
+    } else {
+        let pick = lattice(world ^ 0xF1E1D, (north / 80.0) as i64, (east / 80.0) as i64);
+        [
+            150.0 + 30.0 * pick,
+            152.0 + 25.0 * pick,
+            118.0 + 20.0 * pick,
+        ]
+    };
+    let haze = [188.0, 200.0, 216.0];
+    let k = 1.0 - (-distance / 1800.0).exp();
+    std::array::from_fn(|i| (base[i] + texture) * (1.0 - k) + haze[i] * k)
+}
+
 /// A sinusoid of period 5–30 px (at 320 px) and amplitude 10–40 levels whose crests run at
-/// an angle within ±70° of the rows (near the horizon's own direction is the hard case),
+/// `angle` to the rows (within ±70° for `interference`; near the horizon's own direction is
+/// the hard case),
 /// drifting by a random phase every frame, plus a hum bar: a third of the frame brighter by
 /// up to 30 levels, its raised-cosine profile moving down the frame.
-fn interference(pixels: &mut [[f32; 3]], w: usize, h: usize, index: usize, rng: &mut Rng) {
+fn interference(
+    pixels: &mut [[f32; 3]],
+    w: usize,
+    h: usize,
+    index: usize,
+    angle: f32,
+    rng: &mut Rng,
+) {
     let scale = w as f32 / 320.0;
-    let angle = rng.range(-1.2, 1.2);
     let period = rng.range(5.0, 30.0) * scale;
     let amplitude = rng.range(10.0, 40.0);
     let phase = rng.range(0.0, std::f32::consts::TAU);

@@ -191,3 +191,30 @@ fn haze() {
     };
     check(Degradation::Haze, bounds);
 }
+
+#[test]
+fn ground_edge_far_below_a_hazy_horizon() {
+    // A wood's border 6–15° below a horizon eight times fainter (issue 17): the profile across
+    // the border finds the horizon's step. The worst frames are those where the border lies
+    // within 6° and the two lines' smoothed transitions meet (p95 1.5° measured).
+    let bounds = Bounds {
+        within_2deg: 0.95,
+        median_deg: 0.2,
+        p95_deg: 2.0,
+    };
+    check(Degradation::GroundEdge, bounds);
+}
+
+#[test]
+fn interference_parallel_to_the_horizon() {
+    // Not solved, only honest (docs/horizon.md): a crest next to the horizon is often the line
+    // found (half of the frames within 2° here), and the striped sky keeps such answers under
+    // the estimator's gate; `check` asserts that none passes it more than 2° wrong beyond 1 in
+    // 20, and none above 0.5 more than 5° wrong.
+    let bounds = Bounds {
+        within_2deg: 0.4,
+        median_deg: 1.5,
+        p95_deg: 8.0,
+    };
+    check(Degradation::ParallelInterference, bounds);
+}

@@ -1,0 +1,283 @@
+//! The highest sky/ground step above a chosen line, found on a profile across it rather than by
+//! edge points.
+//!
+//! A strong ground edge (a wood's border, a shore, a field edge) out-votes a hazy horizon
+//! above it. Where the horizon's step is only 10–20 levels, its gradient at the working
+//! resolution falls under the edge threshold (which the strong edge and the ground's texture
+//! set) along most of its length, so it draws too few edge points to be a Hough candidate or
+//! to pass [`super::higher_edge`]'s coverage test (measured on `synth` `ground-edge` frames:
+//! 22–30 votes, 0.2 of its length). Averaged along the line, every pixel of the band counts: a
+//! step of a few levels stands out of a mean over a hundred pixels.
+
+use super::camera::Camera;
+use super::edges::Working;
+use super::hough::Line;
+
+/// Profile bins, one working pixel (one rho step) each ...
+const BINS: usize = 72;
+/// ... of which this many lie on the ground side of the chosen line.
+const BELOW: usize = 4;
+/// Bins averaged either side of a step.
+const SIDE: usize = 2;
+/// A step must be at least this many levels ...
+const MIN_STEP_LEVELS: f32 = 4.0;
+/// ... and this many times its own standard error.
+const MIN_STEP_SIGNIFICANCE: f32 = 6.0;
+/// Columns between the points undistorted exactly on a distorted camera's rows.
+const KNOT: usize = 16;
+/// Polarity changes of clear steps on the sky side that make it striped.
+const STRIPE_ALTERNATIONS: usize = 3;
+/// A step of the other polarity this strong (a share of the found one's) between the chosen
+/// line and the found step rejects it.
+const OPPOSITE_SHARE: f32 = 0.5;
+/// The first bins above the chosen line belong to its own (smoothed) transition.
+const CLEAR_OF_CHOSEN: usize = 4;
+
+#[derive(Clone, Copy, Default)]
+struct Bin {
+    n: f32,
+    sum: f32,
+    sum2: f32,
+}
+
+impl Bin {
+    fn plus(self, o: Bin) -> Bin {
+        Bin {
+            n: self.n + o.n,
+            sum: self.sum + o.sum,
+            sum2: self.sum2 + o.sum2,
+        }
+    }
+
+    fn mean(&self) -> f32 {
+        self.sum / self.n.max(1.0)
+    }
+
+    /// Squared standard error of the mean.
+    fn error2(&self) -> f32 {
+        if self.n < 2.0 {
+            return f32::INFINITY;
+        }
+        let mean = self.mean();
+        let variance = (self.sum2 / self.n - mean * mean).max(0.0);
+        // A floor of one level: the 8-bit quantisation of each pixel.
+        (variance + 1.0) / self.n
+    }
+}
+
+/// A step found above the chosen line.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Step {
+    /// The line through the step (the chosen line's direction).
+    pub line: Line,
+    /// Levels from the ground side to the sky side.
+    pub contrast: f32,
+}
+
+/// Mean luma across a line, one bin per rho step, from [`BELOW`] bins on its ground side to
+/// its reach on the sky side, on the working image.
+pub(crate) struct Profile {
+    bins: [Bin; BINS],
+    reach: usize,
+    /// +1 when the sky is on the line's normal's side, −1 otherwise.
+    sky_ward: f32,
+    line: Line,
+    rho_step: f32,
+}
+
+impl Profile {
+    /// The profile across `chosen` (normal towards the brighter side, as the Hough stage's)
+    /// up to `reach_bins` rho steps on its sky side, `sky_ward` (±1) saying which side that is.
+    pub(crate) fn measure(
+        grey: &[u8],
+        geo: Working,
+        camera: &Camera,
+        chosen: Line,
+        sky_ward: f32,
+        rho_step: f32,
+        reach_bins: usize,
+    ) -> Profile {
+        let reach = reach_bins.min(BINS - BELOW - SIDE);
+        let mut profile = Profile {
+            bins: [Bin::default(); BINS],
+            reach,
+            sky_ward,
+            line: chosen,
+            rho_step,
+        };
+        if rho_step.is_nan() || rho_step <= 0.0 {
+            return profile;
+        }
+        let (nx, ny) = chosen.normal();
+        let inverse = sky_ward / rho_step;
+        let low = -(BELOW as f32);
+        let high = (reach + SIDE) as f32;
+        let mut add = |s: f32, value: u8| {
+            if !(low..high).contains(&s) {
+                return;
+            }
+            if let Some(bin) = profile.bins.get_mut((s - low) as usize) {
+                let value = f32::from(value);
+                bin.n += 1.0;
+                bin.sum += value;
+                bin.sum2 += value * value;
+            }
+        };
+        let rows = grey
+            .chunks_exact(geo.width.max(1))
+            .take(geo.height)
+            .enumerate();
+        if camera.k1 != 0.0 || camera.k2 != 0.0 {
+            // Undistorting every pixel cost more than the rest of the detector (0.65 ms a
+            // frame at 320×240): the bin is smooth along a row, so it is undistorted at knots
+            // [`KNOT`] columns apart and interpolated, on every other row.
+            for (wy, row) in rows.step_by(2) {
+                let bin_at = |wx: usize| {
+                    let (u, v) = geo.to_frame(wx as f32, wy as f32);
+                    camera
+                        .undistort_pixel(u, v)
+                        .map(|(x, y)| (x * nx + y * ny - chosen.rho) * inverse)
+                };
+                let mut a = 0usize;
+                let mut at_a = bin_at(0);
+                while a + 1 < row.len() {
+                    let b = (a + KNOT).min(row.len() - 1);
+                    let at_b = bin_at(b);
+                    if let (Some(sa), Some(sb)) = (at_a, at_b) {
+                        let slope = (sb - sa) / (b - a) as f32;
+                        for (i, &value) in row.get(a..b).unwrap_or(&[]).iter().enumerate() {
+                            add(sa + i as f32 * slope, value);
+                        }
+                    }
+                    a = b;
+                    at_a = at_b;
+                }
+            }
+            return profile;
+        }
+        // Without distortion the bin is linear in the pixel: one add per pixel, and only
+        // over the columns whose bin is in range (a band across the frame); a column either
+        // side of the computed range, and the test in `add`, absorb rounding.
+        let along_row = nx * geo.scale as f32 / camera.fx * inverse;
+        for (wy, row) in rows {
+            let (u0, v) = geo.to_frame(0.0, wy as f32);
+            let row_start = ((u0 - camera.cx) / camera.fx * nx + (v - camera.cy) / camera.fy * ny
+                - chosen.rho)
+                * inverse;
+            let columns = if libm::fabsf(along_row) < 1e-6 {
+                if (low..high).contains(&row_start) {
+                    0..row.len()
+                } else {
+                    0..0
+                }
+            } else {
+                let (a, b) = (
+                    (low - row_start) / along_row,
+                    (high - row_start) / along_row,
+                );
+                let (first, last) = (a.min(b) - 1.0, a.max(b) + 1.0);
+                let width = row.len() as f32;
+                (first.clamp(0.0, width) as usize)..(last.clamp(0.0, width) as usize)
+            };
+            let start = columns.start;
+            for (i, &value) in row.get(columns).unwrap_or(&[]).iter().enumerate() {
+                add(row_start + (start + i) as f32 * along_row, value);
+            }
+        }
+        profile
+    }
+
+    /// The step at bin boundary `k`: its contrast (positive for the sky's polarity) and
+    /// that contrast over its standard error.
+    fn step_at(&self, k: usize) -> Option<(f32, f32)> {
+        let polarity = if self.sky_ward > 0.0 { 1.0 } else { -1.0 };
+        let side = |from: usize| {
+            self.bins
+                .get(from..from + SIDE)
+                .map(|b| b.iter().fold(Bin::default(), |a, &x| a.plus(x)))
+        };
+        let (ground, sky) = (side(k.checked_sub(SIDE)?)?, side(k)?);
+        if ground.n < 8.0 || sky.n < 8.0 {
+            return None;
+        }
+        let contrast = polarity * (sky.mean() - ground.mean());
+        let error = libm::sqrtf(ground.error2() + sky.error2());
+        Some((contrast, contrast / error))
+    }
+
+    /// Whether the sky side is striped: clear steps of alternating polarity, at least
+    /// [`STRIPE_ALTERNATIONS`] changes. A periodic pattern nearly parallel to the horizon
+    /// (interference) puts its crests next to the horizon, where they out-explain it and
+    /// the line found is one of them; the sky above a real horizon has no such steps.
+    pub(crate) fn striped(&self) -> bool {
+        let mut last_sign = 0.0f32;
+        let mut alternations = 0;
+        let mut k = BELOW + CLEAR_OF_CHOSEN;
+        while k <= BELOW + self.reach {
+            match self.step_at(k) {
+                Some((c, sig))
+                    if libm::fabsf(c) >= MIN_STEP_LEVELS
+                        && libm::fabsf(sig) >= MIN_STEP_SIGNIFICANCE =>
+                {
+                    let sign = if c > 0.0 { 1.0 } else { -1.0 };
+                    if sign != last_sign {
+                        if last_sign != 0.0 {
+                            alternations += 1;
+                        }
+                        last_sign = sign;
+                    }
+                    // One step counts once: skip past its window.
+                    k += SIDE;
+                }
+                _ => k += 1,
+            }
+        }
+        alternations >= STRIPE_ALTERNATIONS
+    }
+
+    /// The sky-most step of the sky's polarity within the reach above the line.
+    pub(crate) fn highest_step(&self) -> Option<Step> {
+        let first = BELOW + CLEAR_OF_CHOSEN;
+        let mut k = BELOW + self.reach;
+        while k >= first {
+            if let Some((contrast, significance)) = self.step_at(k)
+                && contrast >= MIN_STEP_LEVELS
+                && significance >= MIN_STEP_SIGNIFICANCE
+            {
+                // The sharpest boundary of this step, within a bin or two.
+                let mut best = (k, contrast);
+                for j in k.saturating_sub(2)..=k + 2 {
+                    if let Some((c, _)) = self.step_at(j)
+                        && c > best.1
+                    {
+                        best = (j, c);
+                    }
+                }
+                // One transition from ground to sky: a band with a step of the other
+                // polarity as strong as half of this one is not ground under the sky but a
+                // stripe, a cloud or a bar (a dark band in the sky has a step of the sky's
+                // polarity at its top). Only below the step: the sky itself darkens away
+                // from the horizon.
+                let opposite = (first..=best.0.saturating_sub(SIDE)).any(|j| {
+                    self.step_at(j).is_some_and(|(c, sig)| {
+                        -c >= MIN_STEP_LEVELS.max(OPPOSITE_SHARE * best.1)
+                            && -sig >= MIN_STEP_SIGNIFICANCE
+                    })
+                });
+                if opposite {
+                    return None;
+                }
+                let offset = (best.0 as f32 - BELOW as f32) * self.rho_step;
+                return Some(Step {
+                    line: Line {
+                        angle: self.line.angle,
+                        rho: self.line.rho + self.sky_ward * offset,
+                    },
+                    contrast: best.1,
+                });
+            }
+            k -= 1;
+        }
+        None
+    }
+}
