@@ -60,6 +60,22 @@ pub struct HorizonLine {
 }
 
 impl HorizonLine {
+    /// Hough line `line` as the horizon, the sky on its brighter side (`sky_brighter`) or on
+    /// its darker one: the ground lies where −n·p > −rho for a bright sky.
+    fn of_line(line: Line, sky_brighter: bool) -> Self {
+        if sky_brighter {
+            HorizonLine {
+                camera_roll_rad: wrap_angle(line.angle + PI),
+                offset: -line.rho,
+            }
+        } else {
+            HorizonLine {
+                camera_roll_rad: wrap_angle(line.angle),
+                offset: line.rho,
+            }
+        }
+    }
+
     /// The line of a camera at roll `roll` and pitch `pitch` (rad).
     pub fn from_attitude(roll: f32, pitch: f32) -> Self {
         HorizonLine {
@@ -712,14 +728,8 @@ impl HorizonDetector {
     /// tracked line, which settles it when the image is ambiguous.
     fn orient(&self, line: Line, bright_is_sky: f32) -> HorizonLine {
         // Bright side is sky: ground on the dark side, where −n·p > −rho.
-        let sky_bright = HorizonLine {
-            camera_roll_rad: wrap_angle(line.angle + PI),
-            offset: -line.rho,
-        };
-        let sky_dark = HorizonLine {
-            camera_roll_rad: wrap_angle(line.angle),
-            offset: line.rho,
-        };
+        let sky_bright = HorizonLine::of_line(line, true);
+        let sky_dark = HorizonLine::of_line(line, false);
         let mut evidence = bright_is_sky + 0.5 * libm::cosf(sky_bright.camera_roll_rad);
         if let Some(track) = self.track {
             evidence += 2.0 * libm::cosf(sky_bright.camera_roll_rad - track.line.camera_roll_rad);
@@ -813,24 +823,10 @@ fn higher_edge(
     if coverage < 0.33 || separation.explained < 0.5 * chosen.explained {
         return None;
     }
-    let texture = hough::band_textures(c.samples, chosen.line, line, sky_ward, c.rho.step);
-    if texture.between_count < 8
-        || texture.above_count < 8
-        || texture.between < GROUND_TEXTURE_RATIO * texture.above + 0.5
-    {
+    if !textured_ground_under_smooth_sky(c, chosen.line, line, sky_ward) {
         return None;
     }
-    let horizon = if sky_brighter {
-        HorizonLine {
-            camera_roll_rad: wrap_angle(line.angle + PI),
-            offset: -line.rho,
-        }
-    } else {
-        HorizonLine {
-            camera_roll_rad: wrap_angle(line.angle),
-            offset: line.rho,
-        }
-    };
+    let horizon = HorizonLine::of_line(line, sky_brighter);
     Some(Scored {
         line,
         horizon,
@@ -839,6 +835,23 @@ fn higher_edge(
         score: separation.explained * coverage,
         continues_track: false,
     })
+}
+
+/// Textured ground in the band between a ground edge (`edge`) and a candidate horizon above
+/// it (`candidate`, the sky on its `sky_ward` side), under smoother sky: enough samples in
+/// both, and the band's texture above the sky's by [`GROUND_TEXTURE_RATIO`].
+fn textured_ground_under_smooth_sky(
+    c: &LineContext<'_>,
+    edge: Line,
+    candidate: Line,
+    sky_ward: f32,
+) -> bool {
+    let texture = hough::band_textures(c.samples, edge, candidate, sky_ward, c.rho.step);
+    // Written as the refusal it negates: a NaN texture is not a refusal.
+    let refused = texture.between_count < 8
+        || texture.above_count < 8
+        || texture.between < GROUND_TEXTURE_RATIO * texture.above + 0.5;
+    !refused
 }
 
 /// The step above `chosen` that is the real horizon, found on a profile across the line
@@ -869,24 +882,10 @@ fn higher_step(
     {
         return None;
     }
-    let texture = hough::band_textures(c.samples, chosen.line, line, sky_ward, c.rho.step);
-    if texture.between_count < 8
-        || texture.above_count < 8
-        || texture.between < GROUND_TEXTURE_RATIO * texture.above + 0.5
-    {
+    if !textured_ground_under_smooth_sky(c, chosen.line, line, sky_ward) {
         return None;
     }
-    let horizon = if sky_brighter {
-        HorizonLine {
-            camera_roll_rad: wrap_angle(line.angle + PI),
-            offset: -line.rho,
-        }
-    } else {
-        HorizonLine {
-            camera_roll_rad: wrap_angle(line.angle),
-            offset: line.rho,
-        }
-    };
+    let horizon = HorizonLine::of_line(line, sky_brighter);
     Some(Scored {
         line,
         horizon,
