@@ -252,6 +252,21 @@ struct Scored {
     continues_track: bool,
 }
 
+impl Scored {
+    /// `line` as the horizon (the sky on its brighter side or not), scored by how well it
+    /// separates the frame and how much of its length is drawn; not yet on the track.
+    fn new(line: Line, sky_brighter: bool, explained: f32, coverage: f32) -> Self {
+        Scored {
+            line,
+            horizon: HorizonLine::of_line(line, sky_brighter),
+            explained,
+            coverage,
+            score: explained * coverage,
+            continues_track: false,
+        }
+    }
+}
+
 /// The detector: camera, tuning, tables and tracking state. `detect` once per frame.
 pub struct HorizonDetector {
     camera: Camera,
@@ -826,15 +841,12 @@ fn higher_edge(
     if !textured_ground_under_smooth_sky(c, chosen.line, line, sky_ward) {
         return None;
     }
-    let horizon = HorizonLine::of_line(line, sky_brighter);
-    Some(Scored {
+    Some(Scored::new(
         line,
-        horizon,
-        explained: separation.explained,
+        sky_brighter,
+        separation.explained,
         coverage,
-        score: separation.explained * coverage,
-        continues_track: false,
-    })
+    ))
 }
 
 /// Textured ground in the band between a ground edge (`edge`) and a candidate horizon above
@@ -885,15 +897,12 @@ fn higher_step(
     if !textured_ground_under_smooth_sky(c, chosen.line, line, sky_ward) {
         return None;
     }
-    let horizon = HorizonLine::of_line(line, sky_brighter);
-    Some(Scored {
+    Some(Scored::new(
         line,
-        horizon,
-        explained: separation.explained,
-        coverage: chosen.coverage,
-        score: separation.explained * chosen.coverage,
-        continues_track: false,
-    })
+        sky_brighter,
+        separation.explained,
+        chosen.coverage,
+    ))
 }
 
 /// Share of the variance above a ground edge that a step found there must explain to be taken
