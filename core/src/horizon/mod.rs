@@ -526,7 +526,7 @@ impl HorizonDetector {
             let coverage = (inliers as f32 / expected).min(1.0);
             let separation = hough::separation(samples, line, 2.0 * rho.step);
             let horizon = self.orient(line, separation.bright_is_sky);
-            let continues_track = self.track.is_some_and(|t| self.in_gate(&t.line, &horizon));
+            let continues_track = self.continues_track(&horizon);
             *slot = Some(Scored {
                 line,
                 horizon,
@@ -558,9 +558,7 @@ impl HorizonDetector {
                         explained: separation.explained,
                         coverage: 1.0,
                         score: separation.explained,
-                        continues_track: self
-                            .track
-                            .is_some_and(|t| self.in_gate(&t.line, &horizon)),
+                        continues_track: self.continues_track(&horizon),
                     });
                 }
                 from_region = true;
@@ -605,9 +603,7 @@ impl HorizonDetector {
             match higher_edge(&context, accumulator, &chosen, sky_brighter, min_votes) {
                 Some(upper) => {
                     chosen = Scored {
-                        continues_track: self
-                            .track
-                            .is_some_and(|t| self.in_gate(&t.line, &upper.horizon)),
+                        continues_track: self.continues_track(&upper.horizon),
                         ..upper
                     };
                     climbed = true;
@@ -633,9 +629,7 @@ impl HorizonDetector {
         {
             profile = across(upper.line);
             chosen = Scored {
-                continues_track: self
-                    .track
-                    .is_some_and(|t| self.in_gate(&t.line, &upper.horizon)),
+                continues_track: self.continues_track(&upper.horizon),
                 ..upper
             };
             climbed = true;
@@ -754,6 +748,11 @@ impl HorizonDetector {
         } else {
             sky_dark
         }
+    }
+
+    /// Whether `candidate` lies within tracking's jump gate of the tracked line (none: no).
+    fn continues_track(&self, candidate: &HorizonLine) -> bool {
+        self.track.is_some_and(|t| self.in_gate(&t.line, candidate))
     }
 
     fn in_gate(&self, tracked: &HorizonLine, candidate: &HorizonLine) -> bool {
