@@ -72,7 +72,7 @@ pub struct Alignment {
     /// The longest stretch at rest that motion cut short: (samples, mean rate, rate σ of one
     /// sample). A vehicle that never rests the whole time still rested this long, and its
     /// mean rate is the best gyro bias there is for a start in motion.
-    longest_rest: Option<(u32, Vector3<f64>, f64)>,
+    longest_rest: Option<Rest>,
 }
 
 impl Alignment {
@@ -91,34 +91,26 @@ impl Alignment {
 
     pub fn restart(&mut self) {
         let restarts = self.restarts;
-        let mut longest = self.longest_rest;
-        if self.count > longest.map_or(0, |(n, _, _)| n) {
-            let n = f64::from(self.count);
-            let mean = self.sum_rate / n;
-            let var = self.sum_rate_sq / n - mean.component_mul(&mean);
-            let sd = libm::sqrt(var.iter().map(|v| v.max(0.0)).sum::<f64>() / 3.0);
-            longest = Some((self.count, mean, sd));
-        }
+        let longest = longer(self.longest_rest, self.current_rest());
         *self = Self::new(self.config);
         self.restarts = restarts;
         self.longest_rest = longest;
     }
 
+    /// The stretch at rest under way: (samples, mean rate, rate σ of one sample).
+    fn current_rest(&self) -> Option<Rest> {
+        (self.count > 0).then(|| {
+            let n = f64::from(self.count);
+            let mean = self.sum_rate / n;
+            (self.count, mean, sd_of(&self.sum_rate_sq, &mean, n))
+        })
+    }
+
     /// The mean rate of the longest stretch at rest so far (the one under way included) and
     /// its 1-σ as a bias estimate, if it lasted at least `min_samples`.
     pub fn rest_gyro_bias(&self, min_samples: u32) -> Option<(Vector3<f64>, f64)> {
-        let current = (self.count > 0).then(|| {
-            let n = f64::from(self.count);
-            let mean = self.sum_rate / n;
-            let var = self.sum_rate_sq / n - mean.component_mul(&mean);
-            let sd = libm::sqrt(var.iter().map(|v| v.max(0.0)).sum::<f64>() / 3.0);
-            (self.count, mean, sd)
-        });
-        let best = match (current, self.longest_rest) {
-            (Some(c), Some(l)) => Some(if c.0 >= l.0 { c } else { l }),
-            (c, l) => c.or(l),
-        };
-        best.filter(|(n, _, _)| *n >= min_samples.max(1))
+        longer(self.current_rest(), self.longest_rest)
+            .filter(|(n, _, _)| *n >= min_samples.max(1))
             .map(|(n, mean, sd)| (mean, sd / libm::sqrt(f64::from(n))))
     }
 
@@ -175,25 +167,45 @@ impl Alignment {
         let n = f64::from(self.count);
         let rate = self.sum_rate / n;
         let force = self.sum_force / n;
-        let sd = |sum_sq: &Vector3<f64>, mean: &Vector3<f64>| {
-            let var = sum_sq / n - mean.component_mul(mean);
-            libm::sqrt(var.iter().map(|v| v.max(0.0)).sum::<f64>() / 3.0)
-        };
         let norm = force.norm();
         if norm.is_nan() || norm <= 1.0 {
             return None;
         }
-        let roll = libm::atan2(-force.y, -force.z);
-        let pitch = libm::atan2(force.x, libm::sqrt(force.y * force.y + force.z * force.z));
+        let (roll, pitch) = level(&force);
         Some(AlignmentResult {
             gyro_bias_radps: rate,
             accel_bias_mps2: force * ((norm - GRAVITY_MPS2) / norm),
             roll_rad: roll,
             pitch_rad: pitch,
-            rate_sd_radps: sd(&self.sum_rate_sq, &rate),
-            accel_sd_mps2: sd(&self.sum_force_sq, &force),
+            rate_sd_radps: sd_of(&self.sum_rate_sq, &rate, n),
+            accel_sd_mps2: sd_of(&self.sum_force_sq, &force, n),
         })
     }
+}
+
+/// Roll and pitch (rad) of a vehicle whose specific force, gravity only, is `f` (body FRD).
+pub(crate) fn level(f: &Vector3<f64>) -> (f64, f64) {
+    (
+        libm::atan2(-f.y, -f.z),
+        libm::atan2(f.x, libm::sqrt(f.y * f.y + f.z * f.z)),
+    )
+}
+
+/// A stretch at rest: (samples, mean rate, rate σ of one sample).
+type Rest = (u32, Vector3<f64>, f64);
+
+/// The longer of two stretches at rest, `a` on a tie.
+fn longer(a: Option<Rest>, b: Option<Rest>) -> Option<Rest> {
+    match (a, b) {
+        (Some(a), Some(b)) => Some(if b.0 > a.0 { b } else { a }),
+        (a, b) => a.or(b),
+    }
+}
+
+/// The axes' mean 1-σ of `n` samples of mean `mean` whose squares sum to `sum_sq`.
+fn sd_of(sum_sq: &Vector3<f64>, mean: &Vector3<f64>, n: f64) -> f64 {
+    let var = sum_sq / n - mean.component_mul(mean);
+    libm::sqrt(var.iter().map(|v| v.max(0.0)).sum::<f64>() / 3.0)
 }
 
 #[cfg(test)]

@@ -15,7 +15,7 @@
 
 use nalgebra::Vector3;
 
-use super::alignment::{Alignment, AlignmentConfig, AlignmentResult};
+use super::alignment::{Alignment, AlignmentConfig, AlignmentResult, level};
 use super::ekf::{
     BA, BG, Ekf, EkfConfig, EkfCounters, GRAVITY_MPS2, GpsMeasurement, NominalState, P, TH,
     UpdateOutcome, V,
@@ -220,14 +220,6 @@ const MOTION_SMOOTHING_S: f64 = 0.5;
 
 /// A stretch at rest shorter than this (samples) gives no gyro bias for a start in motion.
 const MIN_REST_SAMPLES: u32 = 100;
-
-/// Roll and pitch (rad) of a vehicle whose specific force, gravity only, is `f` (body FRD).
-fn level(f: &Vector3<f64>) -> (f64, f64) {
-    (
-        libm::atan2(-f.y, -f.z),
-        libm::atan2(f.x, libm::sqrt(f.y * f.y + f.z * f.z)),
-    )
-}
 
 /// Exponential smoothing of `mean` towards `x` over `dt_s`.
 fn smooth(mean: &mut Option<Vector3<f64>>, x: Vector3<f64>, dt_s: f64) {
