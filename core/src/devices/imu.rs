@@ -66,6 +66,10 @@ pub const IMU_FRAME_PERIOD_S: f64 = 0.01;
 /// times (the counter may have wrapped).
 pub const MAX_COUNTED_GAP: u8 = 10;
 
+/// Receive-time gap beyond the counted one that means an outage (s): five frames, more than
+/// any scheduling jitter delays a read.
+pub const OUTAGE_SLACK_S: f64 = 0.05;
+
 /// The time step from the previous sample `(counter, received_ns)` to this one: from the
 /// frame counter, so scheduling jitter does not enter the integration, or from the receive
 /// times for a gap the counter cannot measure. `None`: the same frame again (nothing new).
@@ -73,8 +77,17 @@ pub const MAX_COUNTED_GAP: u8 = 10;
 pub fn imu_step_s(previous: Option<(u8, u64)>, counter: u8, received_ns: u64) -> Option<f64> {
     match previous {
         Some((last, _)) if last == counter => None,
-        Some((last, _)) if counter.wrapping_sub(last) <= MAX_COUNTED_GAP => {
-            Some(f64::from(counter.wrapping_sub(last)) * IMU_FRAME_PERIOD_S)
+        Some((last, last_ns)) if counter.wrapping_sub(last) <= MAX_COUNTED_GAP => {
+            let counted_s = f64::from(counter.wrapping_sub(last)) * IMU_FRAME_PERIOD_S;
+            // The counter cannot tell an outage of 256 frames (or a device that restarted,
+            // or stopped counting while its link was down) from one frame: when the receive
+            // times say far more time passed than the frames counted, they are right.
+            let elapsed_s = received_ns.saturating_sub(last_ns) as f64 * 1e-9;
+            Some(if elapsed_s > counted_s + OUTAGE_SLACK_S {
+                elapsed_s
+            } else {
+                counted_s
+            })
         }
         Some((_, last_ns)) => Some(received_ns.saturating_sub(last_ns) as f64 * 1e-9),
         None => Some(IMU_FRAME_PERIOD_S),
@@ -480,6 +493,9 @@ mod step_tests {
         assert_eq!(imu_step_s(Some((7, 0)), 8, 13_000_000), Some(0.01));
         // Wrapping: 255 → 2 is three frames.
         assert_eq!(imu_step_s(Some((255, 0)), 2, 0), Some(0.03));
+        // One frame counted, two seconds received: an outage the counter missed.
+        let outage = imu_step_s(Some((7, 0)), 8, 2_010_000_000).expect("a step");
+        assert!((outage - 2.01).abs() < 1e-12, "{outage}");
         // Eleven frames: the counter may have wrapped, the receive times decide.
         assert_eq!(
             imu_step_s(Some((0, 1_000_000_000)), 11, 1_250_000_000),

@@ -99,9 +99,6 @@ pub const SD_INDEX: u8 = 3;
 /// Steps without a fresh IMU sample before the estimate is marked unhealthy.
 pub const IMU_TIMEOUT_STEPS: u32 = 5;
 const HEALTH_LOG_INTERVAL_NS: u64 = 1_000_000_000;
-/// Receive-time gap beyond the counted one that means an outage (s): five frames, more than
-/// any scheduling jitter delays a read.
-const OUTAGE_SLACK_S: f64 = 0.05;
 
 pub struct EstimatorTask<'a, S: RecordSink> {
     estimator: Estimator,
@@ -167,19 +164,10 @@ impl<'a, S: RecordSink> EstimatorTask<'a, S> {
         };
         self.steps_without_imu = 0;
         // A repeated publication of the same frame is nothing new; a gap the counter cannot
-        // measure is timed by the receive times (the filter refuses steps over 0.1 s).
-        let Some(mut dt) = imu_step_s(self.last_imu, sample.counter, sample.received_ns) else {
+        // measure, or an outage it missed, is timed by the receive times (`imu_step_s`).
+        let Some(dt) = imu_step_s(self.last_imu, sample.counter, sample.received_ns) else {
             return;
         };
-        // The counter cannot tell an outage of 256 frames (or a device that restarted, or
-        // stopped counting while its link was down) from one frame: when the receive times
-        // say far more time passed than the frames counted, the receive times are right.
-        if let Some((_, last_ns)) = self.last_imu {
-            let elapsed_s = sample.received_ns.saturating_sub(last_ns) as f64 * 1e-9;
-            if elapsed_s > dt + OUTAGE_SLACK_S {
-                dt = elapsed_s;
-            }
-        }
         self.last_imu = Some((sample.counter, sample.received_ns));
         let m = sample.measurement;
         self.estimator
