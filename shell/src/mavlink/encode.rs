@@ -13,10 +13,9 @@ use super::mav::{
 };
 use super::view::VehicleView;
 use skyframe_core::control::mode::FlightMode;
+use skyframe_core::estimation::ekf::GRAVITY_MPS2;
 use skyframe_core::estimation::geo::{GeoPoint, LocalFrame};
 use skyframe_core::estimation::nalgebra::Vector3;
-
-const G_M_S2: f64 = 9.80665;
 
 /// Degrees as MAVLink's degE7 integer (saturating: only an absurd input reaches the limits).
 pub fn deg_e7(deg: f64) -> i32 {
@@ -50,7 +49,7 @@ pub fn deg_heading(rad: f64) -> i16 {
 
 /// Specific force (m/s²) as milli-g.
 pub fn milli_g(a: f64) -> i16 {
-    (a / G_M_S2 * 1e3).round().clamp(-32768.0, 32767.0) as i16
+    (a / GRAVITY_MPS2 * 1e3).round().clamp(-32768.0, 32767.0) as i16
 }
 
 /// A normalised servo command as a pulse width: −1..1 → 1000..2000 µs; throttle 0..1 →

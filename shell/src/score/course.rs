@@ -19,6 +19,7 @@
 
 use skyframe_core::angles::wrap_pi;
 use skyframe_core::control::autopilot::AutopilotGains;
+use skyframe_core::estimation::ekf::GRAVITY_MPS2;
 
 /// How long the command must have been steady.
 pub const STEADY_NS: i64 = 5_000_000_000;
@@ -28,7 +29,6 @@ pub const STEP_RAD: f64 = 1.0 * std::f64::consts::PI / 180.0;
 pub const CAPTURE_RAD: f64 = 5.0 * std::f64::consts::PI / 180.0;
 /// Rolling into the turn and out of it: 2 s, a 45° bank reached and left at 45°/s.
 pub const ROLL_MARGIN_NS: i64 = 2_000_000_000;
-const G: f64 = 9.806_65;
 
 /// The bank limit in force over a flight, from `control.bin` format 2 (`max_bank_deg` at
 /// each change).
@@ -96,7 +96,7 @@ impl TurnWindow {
         if new_command {
             self.captured = false;
             let turn_rad = wrap_pi(row.command_rad - row.true_rad).abs();
-            let rate = G * row.bank_limit_rad.tan() / row.ground_speed_mps.max(5.0);
+            let rate = GRAVITY_MPS2 * row.bank_limit_rad.tan() / row.ground_speed_mps.max(5.0);
             let turn_s = turn_rad / rate;
             self.turn_over_ns = if turn_s.is_finite() && turn_s >= 0.0 {
                 row.t_ns
