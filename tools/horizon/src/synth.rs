@@ -52,10 +52,20 @@ pub enum Degradation {
     /// A dark near field ending at a straight line 6–15° below the horizon, with light
     /// hazy fields beyond it (issue 17): the ground edge is far stronger than the horizon.
     GroundEdge,
+    /// Dusk with the gain turned up (issue 17): the scene lit a tenth as brightly, counted in
+    /// electrons with their shot noise, read noise and a random offset per row, then
+    /// amplified back, over the haze set's scene. The noise grows with brightness and is
+    /// correlated along the rows, so a level horizon's small step must be told from the rows'
+    /// own offsets.
+    LowLight,
+    /// No horizon to see (issue 17's honesty): every other frame looks steeply down at fields
+    /// crossed by long straight roads, the others steeply up into the sky and its clouds.
+    /// Scored only on false confidence.
+    NoHorizon,
 }
 
 impl Degradation {
-    pub const SETS: [Degradation; 15] = [
+    pub const SETS: [Degradation; 17] = [
         Degradation::Clean,
         Degradation::SensorNoise,
         Degradation::TransmissionNoise,
@@ -71,6 +81,8 @@ impl Degradation {
         Degradation::Blocks,
         Degradation::ParallelInterference,
         Degradation::GroundEdge,
+        Degradation::LowLight,
+        Degradation::NoHorizon,
     ];
 
     pub fn name(self) -> &'static str {
@@ -91,6 +103,8 @@ impl Degradation {
             Degradation::Blocks => "blocks",
             Degradation::ParallelInterference => "parallel-interference",
             Degradation::GroundEdge => "ground-edge",
+            Degradation::LowLight => "low-light",
+            Degradation::NoHorizon => "no-horizon",
         }
     }
 
@@ -279,7 +293,14 @@ impl Renderer {
 
     /// Frame `index` of the sequence and its truth.
     pub fn render(&self, index: usize) -> (Image, Truth) {
-        let (truth, heading) = trajectory(index, self.seed);
+        let (mut truth, heading) = trajectory(index, self.seed);
+        let no_horizon = self.degradation == Degradation::NoHorizon;
+        let looking_down = no_horizon && index % 2 == 0;
+        if no_horizon {
+            // 45–75° nose down or up: the horizon is far outside the frame.
+            let away = 60.0 + 15.0 * (index as f32 * 0.37).sin();
+            truth.pitch_deg += if looking_down { -away } else { away };
+        }
         let (roll, pitch) = (truth.roll_deg.to_radians(), truth.pitch_deg.to_radians());
         let (sr, cr, sp, cp, sh, ch) = (
             roll.sin(),
@@ -293,8 +314,8 @@ impl Renderer {
         let east = index as f32 * METRES_PER_FRAME * sh;
         let mut frame_rng =
             Rng::new(self.seed ^ (index as u64).wrapping_mul(0xA24B_AED4_963E_E407));
-        let roads = self.has(Degradation::Roads);
-        let clouds = self.has(Degradation::Clouds);
+        let roads = self.has(Degradation::Roads) || looking_down;
+        let clouds = self.has(Degradation::Clouds) || (no_horizon && !looking_down);
         let cloud_cover = if self.degradation == Degradation::Clouds {
             0.6
         } else {
@@ -312,6 +333,16 @@ impl Renderer {
             Haze {
                 distance_m: 500.0,
                 colour: [182.0, 195.0, 212.0],
+            }
+        } else if self.degradation == Degradation::LowLight {
+            // Dusk is hazy: an airlight 6–16 levels under of the sky at the horizon (the
+            // flight's own shade), so the horizon is a step smaller than the pixels' noise.
+            let below =
+                6.0 + 10.0 * ((self.seed.wrapping_mul(0x9E37_79B9) >> 16) % 1000) as f32 / 1000.0;
+            let sky = sky_colour(0.0);
+            Haze {
+                distance_m: 700.0,
+                colour: sky.map(|c| c - below),
             }
         } else {
             Haze::NORMAL
@@ -481,6 +512,9 @@ impl Renderer {
         if self.degradation == Degradation::Blocks {
             blocks(pixels, w, h, rng);
         }
+        if self.degradation == Degradation::LowLight {
+            Self::low_light(pixels, w, rng);
+        }
         let stripe = if self.has(Degradation::WhiteStripes) {
             Some(255.0)
         } else if self.degradation == Degradation::BlackStripes {
@@ -499,6 +533,35 @@ impl Renderer {
                     let jitter = 8.0 * rng.normal();
                     *p = [value + jitter; 3];
                 }
+            }
+        }
+    }
+
+    /// A dim scene read by a sensor at high gain. The 8-bit values are taken as sRGB, turned
+    /// into linear light, and a full-scale pixel collects `full_well` electrons (60–400: a tenth
+    /// of daylight or less). Each pixel adds its shot noise (√electrons), 2–5 electrons of read
+    /// noise and its row's offset (0.5–2.5 electrons, one draw a row: the row's reset and
+    /// amplifier), is quantised by a 10-bit converter over the full well, and is scaled back
+    /// to full brightness and gamma-encoded.
+    fn low_light(pixels: &mut [[f32; 3]], w: usize, rng: &mut Rng) {
+        let full_well = rng.range(60.0, 400.0);
+        let read_noise = rng.range(2.0, 5.0);
+        let row_noise = rng.range(0.5, 2.5);
+        let step = full_well / 1024.0;
+        let mut row_offset = 0.0;
+        for (i, p) in pixels.iter_mut().enumerate() {
+            if i % w == 0 {
+                row_offset = row_noise * rng.normal();
+            }
+            for c in p.iter_mut() {
+                let linear = (c.clamp(0.0, 255.0) / 255.0).powf(2.2);
+                let electrons = linear * full_well;
+                let read = electrons
+                    + electrons.sqrt() * rng.normal()
+                    + read_noise * rng.normal()
+                    + row_offset;
+                let digital = ((read / step).round() * step / full_well).max(0.0);
+                *c = 255.0 * digital.powf(1.0 / 2.2);
             }
         }
     }
@@ -779,6 +842,35 @@ fn blocks(pixels: &mut [[f32; 3]], w: usize, h: usize, rng: &mut Rng) {
             let line: Vec<[f32; 3]> = pixels[y * w..(y + 1) * w].to_vec();
             for (x, p) in pixels[y * w..(y + 1) * w].iter_mut().enumerate() {
                 *p = line[x.saturating_sub(shift)];
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The honesty set holds no horizon: every frame is pitched out of it, so the bench
+    /// scores it on false confidence only (a frame marked visible would be scored on angles).
+    #[test]
+    fn no_horizon_frames_show_no_horizon() {
+        let renderer = Renderer::new(Degradation::NoHorizon, 160, 120, 4);
+        for index in 0..6 {
+            let (image, truth) = renderer.render(index);
+            assert!(!truth.visible, "frame {index}: {truth:?}");
+            assert!(truth.pitch_deg.abs() > 40.0, "frame {index}: {truth:?}");
+            // Looking down: all ground, no sky-blue pixel; looking up: all sky.
+            let blue = image
+                .data
+                .chunks_exact(3)
+                .filter(|p| p[2] > p[0].saturating_add(20))
+                .count();
+            let pixels = image.width * image.height;
+            if index % 2 == 0 {
+                assert_eq!(blue, 0, "frame {index} looks down");
+            } else {
+                assert!(blue > pixels / 2, "frame {index} looks up: {blue} blue");
             }
         }
     }
