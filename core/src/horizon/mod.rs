@@ -668,6 +668,12 @@ impl HorizonDetector {
         if profile.striped() {
             confidence *= STRIPED_CONFIDENCE;
         }
+        // Which side is the sky must be clear: brighter, bluer and smoother together. Looking
+        // down at fields, a field's border splits the frame as well as a horizon does, but
+        // the lighter field is no bluer and no smoother than the darker (the evidence sums to
+        // about zero); looking up, a cloud's edge has sky on both sides.
+        let skyness = hough::separation(samples, chosen.line, 2.0 * rho.step).bright_is_sky;
+        confidence *= (libm::fabsf(skyness) / CLEAR_SKY_EVIDENCE).clamp(0.0, 1.0);
         if jumped {
             confidence *= 0.7;
         }
@@ -934,6 +940,12 @@ fn noise_level(
         percentile
     }
 }
+
+/// Evidence that one side is the sky ([`hough::Separation::bright_is_sky`]) at and above which
+/// it costs the confidence nothing; below it the confidence falls in proportion. Measured on
+/// `synth` seeds 1 and 2: the no-horizon frames' lines 0.7 at most, real horizons (low light
+/// included) 1.4 and up; 1.5 began to cost those.
+const CLEAR_SKY_EVIDENCE: f32 = 1.0;
 
 /// Confidence kept by a line under a striped sky (see [`upper::Profile::striped`]): a
 /// crest next to the horizon explains nearly as much of the frame, and it is not known which.

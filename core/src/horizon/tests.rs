@@ -852,3 +852,53 @@ fn stripes_parallel_to_the_horizon_are_not_trusted_when_they_win() {
         );
     }
 }
+
+/// Looking steeply down at fields: the border of a light field and a dark one is a long,
+/// straight, strong edge that splits the frame as well as a horizon, but the light side is
+/// neither bluer nor smoother than the dark one, so it is not trusted as the sky. The same
+/// frame with the light field replaced by smooth blue sky is.
+#[test]
+fn a_field_border_seen_from_above_is_not_trusted() {
+    let camera = camera_320();
+    let (roll, pitch) = (-80.0 * DEG, 4.0 * DEG);
+    let line = HorizonLine::from_attitude(roll, pitch);
+    let frame = |light: [f32; 3], light_texture: f32| {
+        let (w, h) = (camera.width as usize, camera.height as usize);
+        let mut rgb = vec![0u8; w * h * 3];
+        for v in 0..h {
+            for u in 0..w {
+                let (x, y) = camera
+                    .undistort_pixel(u as f32, v as f32)
+                    .expect("inside the model");
+                let dark_field = line.is_ground(x, y);
+                // Field texture: blotches of 6 px and grain.
+                let blotch = hash(u as i64 / 6, v as i64 / 6, 3) - 0.5;
+                let grain = hash(u as i64, v as i64, 4) - 0.5;
+                let (base, texture) = if dark_field {
+                    ([70.0, 100.0, 50.0], 40.0)
+                } else {
+                    (light, light_texture)
+                };
+                for (c, b) in base.iter().enumerate() {
+                    let value = b + texture * (blotch + 0.5 * grain);
+                    rgb[(v * w + u) * 3 + c] = value.round().clamp(0.0, 255.0) as u8;
+                }
+            }
+        }
+        rgb
+    };
+    let fields = frame([165.0, 150.0, 95.0], 40.0);
+    if let Some(h) = detect_once(camera, Pixels::Rgb(&fields)) {
+        assert!(
+            h.confidence < gate(),
+            "field border read as roll {:.1} pitch {:.1} with confidence {:.2}",
+            h.roll_rad / DEG,
+            h.pitch_rad / DEG,
+            h.confidence
+        );
+    }
+    let sky = frame([150.0, 190.0, 235.0], 2.0);
+    let h = detect_once(camera, Pixels::Rgb(&sky));
+    assert_attitude(h, -80.0, 4.0, 1.0);
+    assert!(h.is_some_and(|h| h.confidence >= gate()), "{h:?}");
+}
