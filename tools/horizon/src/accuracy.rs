@@ -42,6 +42,10 @@ pub struct Accuracy {
     /// ([`gate`]) but is wrong: more than 2° off, or a line where no horizon can be seen. A
     /// detector without a confidence claims every answer.
     pub false_confident_rate: f32,
+    /// Share of the frames with a visible horizon whose answer is within 2° and passes the
+    /// estimator's gate: what the estimator can use (a detector without a confidence: its
+    /// share within 2°).
+    pub usable: Option<f32>,
 }
 
 /// Above this a confident answer counts as a lie (the accuracy tests assert none).
@@ -81,7 +85,7 @@ pub fn evaluate(answers: &[Answer], truths: &[Truth]) -> Accuracy {
     let (mut roll_signed, mut pitch_signed) = (Vec::new(), Vec::new());
     let (mut within1, mut within2, mut within5) = (0, 0, 0);
     let (mut wrong, mut wrong_confident, mut false_confident) = (0, 0, 0);
-    let mut confident = 0;
+    let (mut confident, mut usable) = (0, 0);
     let has_confidence = answers.iter().any(|a| a.confidence.is_some());
     for (a, t) in answers.iter().zip(truths) {
         let Some((roll, pitch)) = a.attitude else {
@@ -107,6 +111,7 @@ pub fn evaluate(answers: &[Answer], truths: &[Truth]) -> Accuracy {
         within2 += usize::from(worst <= 2.0);
         within5 += usize::from(worst <= 5.0);
         false_confident += usize::from(claims && worst > FALSE_DEG);
+        usable += usize::from(claims && worst <= FALSE_DEG);
         if worst > WRONG_DEG {
             wrong += 1;
             if a.confidence.is_some_and(|c| c > CONFIDENT) {
@@ -140,5 +145,56 @@ pub fn evaluate(answers: &[Answer], truths: &[Truth]) -> Accuracy {
         } else {
             0.0
         },
+        usable: share(usable),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Usable: right and through the gate, over the frames with a horizon to see.
+    #[test]
+    fn usable_counts_right_answers_through_the_gate() {
+        let truth = |visible| Truth {
+            roll_deg: 10.0,
+            pitch_deg: 2.0,
+            visible,
+        };
+        let answer = |roll: f32, confidence: f32| Answer {
+            attitude: Some((roll, 2.0)),
+            confidence: Some(confidence),
+        };
+        let answers = [
+            answer(10.5, 0.9), // right, through the gate: usable
+            answer(10.5, 0.1), // right, under the gate
+            answer(15.0, 0.9), // wrong and confident
+            answer(10.0, 0.9), // no horizon to see: a false confidence, not usable
+            Answer {
+                attitude: None,
+                confidence: None,
+            },
+        ];
+        let truths = [
+            truth(true),
+            truth(true),
+            truth(true),
+            truth(false),
+            truth(true),
+        ];
+        let a = evaluate(&answers, &truths);
+        assert_eq!(a.visible, 4);
+        assert_eq!(a.usable, Some(0.25));
+        assert_eq!(a.within_2deg, Some(0.5));
+        assert!((a.false_confident_rate - 0.4).abs() < 1e-6);
+        // Without a confidence every answer claims: usable is the share within 2°.
+        let plain: Vec<Answer> = answers
+            .iter()
+            .map(|a| Answer {
+                confidence: None,
+                ..*a
+            })
+            .collect();
+        assert_eq!(evaluate(&plain, &truths).usable, Some(0.5));
     }
 }

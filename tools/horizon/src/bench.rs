@@ -654,6 +654,7 @@ fn print_tables(report: &Report, markdown: bool) {
         "roll_med",
         "pitch_med",
         "false_conf",
+        "usable",
         "ms",
         "cv_w1",
         "cv_w2",
@@ -667,7 +668,9 @@ fn print_tables(report: &Report, markdown: bool) {
         if markdown {
             println!("| {} |", cells.join(" | "));
         } else {
-            let widths = [8, 19, 8, 5, 5, 5, 8, 9, 8, 9, 10, 6, 5, 5, 5, 11, 12, 8, 6];
+            let widths = [
+                8, 21, 8, 5, 5, 5, 8, 9, 8, 9, 10, 6, 6, 5, 5, 5, 11, 12, 8, 6,
+            ];
             let line: Vec<String> = cells
                 .iter()
                 .zip(widths)
@@ -694,6 +697,7 @@ fn print_tables(report: &Report, markdown: bool) {
             format!("{:.2}", a.roll_median_deg),
             format!("{:.2}", a.pitch_median_deg),
             format!("{:.2}", a.false_confident_rate),
+            opt(a.usable),
             format!("{:.2}", s.ours.ms_median),
         ];
         match &s.opencv {
@@ -719,7 +723,8 @@ fn print_tables(report: &Report, markdown: bool) {
          within 1°/2°/5°; *_sgn: median signed error (°, measured − truth); *_med: median \
          absolute error; false_conf: share of all frames answered with confidence ≥ {:.2} (the \
          estimator's gate) more than 2° wrong or where no horizon can be seen (OpenCV has no \
-         confidence: every answer counts); ms: median ms/frame; cv_*: the OpenCV pipeline. \
+         confidence: every answer counts); usable: share of the frames with a visible horizon \
+         answered within 2° at or above that gate (what the estimator can use); ms: median ms/frame; cv_*: the OpenCV pipeline. \
          Tuned on synth; terrain is held out.",
         report.confidence_gate
     );
