@@ -21,6 +21,7 @@ mod frame;
 mod hough;
 mod profile;
 mod region;
+mod stripes;
 #[cfg(test)]
 mod tests;
 mod upper;
@@ -633,6 +634,56 @@ impl HorizonDetector {
                 ..upper
             };
             climbed = true;
+        }
+
+        // 7c: a striped sky above the chosen line: it is a crest of interference nearly
+        // parallel to the horizon (see `stripes`). The sinusoid along it is measured and
+        // subtracted from the working image, and the region search finds the horizon in
+        // regions that no longer hold the stripes.
+        let mut sample_count = sample_count;
+        let mut destriped = false;
+        if !climbed
+            && profile.striped()
+            && let Some(wave) = stripes::Wave::estimate(ws.grey, geo, &camera, chosen.line)
+        {
+            wave.subtract(ws.grey, geo);
+            sample_count = edges::collect_samples(frame, ws.grey, geo, &camera, ws.samples);
+            let clean = ws.samples.get(..sample_count).unwrap_or(&[]);
+            if let Some(line) = region::search(clean, libm::sqrtf(max_radius2)) {
+                let separation = hough::separation(clean, line, 2.0 * rho.step);
+                if separation.explained >= MIN_EXPLAINED {
+                    let horizon = self.orient(line, separation.bright_is_sky);
+                    chosen = Scored {
+                        line,
+                        horizon,
+                        explained: separation.explained,
+                        coverage: 1.0,
+                        score: separation.explained,
+                        continues_track: self.continues_track(&horizon),
+                    };
+                    from_region = true;
+                    destriped = true;
+                }
+            }
+        }
+        let samples = ws.samples.get(..sample_count).unwrap_or(&[]);
+        let sky_brighter = if destriped {
+            libm::fabsf(wrap_angle(
+                chosen.horizon.camera_roll_rad - (chosen.line.angle + PI),
+            )) < 0.5 * PI
+        } else {
+            sky_brighter
+        };
+        if destriped {
+            profile = upper::Profile::measure(
+                ws.grey,
+                geo,
+                &camera,
+                chosen.line,
+                if sky_brighter { 1.0 } else { -1.0 },
+                rho.step,
+                (HIGHER_EDGE_REACH / rho.step) as usize,
+            );
         }
 
         // Confidence: the line must split the frame into clearly different halves, be drawn
