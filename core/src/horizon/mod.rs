@@ -649,7 +649,7 @@ impl HorizonDetector {
             wave.subtract(ws.grey, geo);
             sample_count = edges::collect_samples(frame, ws.grey, geo, &camera, ws.samples);
             let clean = ws.samples.get(..sample_count).unwrap_or(&[]);
-            if let Some(line) = region::search(clean, libm::sqrtf(max_radius2)) {
+            if let Some(line) = region::quick_search(clean, libm::sqrtf(max_radius2)) {
                 let separation = hough::separation(clean, line, 2.0 * rho.step);
                 if separation.explained >= MIN_EXPLAINED {
                     let horizon = self.orient(line, separation.bright_is_sky);

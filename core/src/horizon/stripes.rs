@@ -116,36 +116,22 @@ impl Wave {
             }
             Some((bb.sum - ba.sum, a, b))
         };
-        // Coarse then fine search of the periodogram's peak, bins at their nominal places.
-        let power = |k: f32| -> f32 {
-            let step = (libm::cosf(k * BIN), -libm::sinf(k * BIN));
-            let (mut zr, mut zi) = (1.0f32, 0.0f32);
-            let (mut re, mut im) = (0.0f32, 0.0f32);
-            for j in 0..used {
-                if let Some((dv, _, _)) = derivative(j) {
-                    re += dv * zr;
-                    im += dv * zi;
-                }
-                let r = zr * step.0 - zi * step.1;
-                zi = zr * step.1 + zi * step.0;
-                zr = r;
+        // The derivative at each bin's nominal place (0 where it is not defined).
+        let mut slope = [0.0f32; BINS];
+        for (j, out) in slope.iter_mut().enumerate().take(used) {
+            if let Some((dv, _, _)) = derivative(j) {
+                *out = dv;
             }
-            re * re + im * im
-        };
-        let search = |from: f32, to: f32, dk: f32| -> (f32, f32) {
-            let mut best = (from, f32::MIN);
-            let mut k = from;
-            while k <= to {
-                let p = power(k);
-                if p > best.1 {
-                    best = (k, p);
-                }
-                k += dk;
-            }
-            best
-        };
-        let (coarse, _) = search(2.0 * PI / MAX_PERIOD, 2.0 * PI / MIN_PERIOD, COARSE_DK);
-        let (k, _) = search(coarse - COARSE_DK, coarse + COARSE_DK, FINE_DK);
+        }
+        let slope = slope.get(..used).unwrap_or(&[]);
+        // Coarse then fine search of the periodogram's peak, [`LANES`] wavenumbers a pass.
+        let (coarse, _) = peak(
+            slope,
+            2.0 * PI / MAX_PERIOD,
+            2.0 * PI / MIN_PERIOD,
+            COARSE_DK,
+        );
+        let (k, _) = peak(slope, coarse - COARSE_DK, coarse + COARSE_DK, FINE_DK);
 
         // Least squares of the derivative on the sinusoid's own derivative (and a constant
         // slope), at the bins' mean places; twice, the second time without the spike.
@@ -241,6 +227,56 @@ impl Wave {
             }
         }
     }
+}
+
+/// Wavenumbers whose periodogram one pass over the profile computes: independent
+/// recurrences, so that they run side by side.
+const LANES: usize = 16;
+
+#[derive(Clone, Copy)]
+struct Lane {
+    k: f32,
+    /// `exp(−i·k·x)` at the current bin, and its factor per bin.
+    z: (f32, f32),
+    step: (f32, f32),
+    sum: (f32, f32),
+}
+
+/// The wavenumber in `[from, to]` (steps of `dk`) where the periodogram of `values` (one per
+/// bin of [`BIN`] working pixels) is highest, and that power.
+fn peak(values: &[f32], from: f32, to: f32, dk: f32) -> (f32, f32) {
+    let mut best = (from, f32::MIN);
+    let mut k0 = from;
+    while k0 <= to {
+        let mut lanes = [Lane {
+            k: 0.0,
+            z: (1.0, 0.0),
+            step: (1.0, 0.0),
+            sum: (0.0, 0.0),
+        }; LANES];
+        for (i, lane) in lanes.iter_mut().enumerate() {
+            lane.k = k0 + i as f32 * dk;
+            lane.step = (libm::cosf(lane.k * BIN), -libm::sinf(lane.k * BIN));
+        }
+        for &v in values {
+            for lane in lanes.iter_mut() {
+                let (zr, zi) = lane.z;
+                lane.sum = (lane.sum.0 + v * zr, lane.sum.1 + v * zi);
+                lane.z = (
+                    zr * lane.step.0 - zi * lane.step.1,
+                    zr * lane.step.1 + zi * lane.step.0,
+                );
+            }
+        }
+        for lane in &lanes {
+            let power = lane.sum.0 * lane.sum.0 + lane.sum.1 * lane.sum.1;
+            if lane.k <= to && power > best.1 {
+                best = (lane.k, power);
+            }
+        }
+        k0 += LANES as f32 * dk;
+    }
+    best
 }
 
 /// Solves the symmetric 3 × 3 system `m·x = r` by Cramer's rule; `None` when singular.
