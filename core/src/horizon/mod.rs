@@ -674,6 +674,11 @@ impl HorizonDetector {
         } else {
             sky_brighter
         };
+        // A region's split may lie inside the transition (mid-ramp under haze) rather than at
+        // its top, where the horizon is; a clear step above it in the same transition makes
+        // the answer a guess between the two. Measured on `synth`, moving the line there
+        // read more crests and sky gradients than ramps: it stays, at a lower confidence.
+        let mut ambiguous = false;
         if destriped {
             profile = upper::Profile::measure(
                 ws.grey,
@@ -684,6 +689,9 @@ impl HorizonDetector {
                 rho.step,
                 (HIGHER_EDGE_REACH / rho.step) as usize,
             );
+            ambiguous = profile.top_of_transition().is_some_and(|top| {
+                libm::fabsf(top.rho - chosen.line.rho) > TOP_AMBIGUITY * rho.step
+            });
         }
 
         // Confidence: the line must split the frame into clearly different halves, be drawn
@@ -716,7 +724,7 @@ impl HorizonDetector {
         if edge_stats.dropped > 0 {
             confidence *= 0.8;
         }
-        if profile.striped() {
+        if profile.striped() || ambiguous {
             confidence *= STRIPED_CONFIDENCE;
         }
         if jumped {
@@ -989,6 +997,10 @@ fn noise_level(
 /// Confidence kept by a line under a striped sky (see [`upper::Profile::striped`]): a
 /// crest next to the horizon explains nearly as much of the frame, and it is not known which.
 const STRIPED_CONFIDENCE: f32 = 0.25;
+
+/// A destriped line with a clear step more than this many working pixels above it, in the same
+/// transition, is ambiguous (see `upper::Profile::top_of_transition`).
+const TOP_AMBIGUITY: f32 = 2.0;
 
 /// The region search runs when no edge line explains this share of the frame's variance ...
 const REGION_TRIGGER: f32 = 0.3;
