@@ -636,34 +636,50 @@ impl HorizonDetector {
             climbed = true;
         }
 
-        // 7c: a striped sky above the chosen line: it is a crest of interference nearly
-        // parallel to the horizon (see `stripes`). The sinusoid along it is measured and
-        // subtracted from the working image, and the region search finds the horizon in
-        // regions that no longer hold the stripes.
+        // 7c: interference (see `stripes`). A striped sky above the chosen line: the line is a
+        // crest nearly parallel to the horizon. A family of parallel candidates: the stripes'
+        // crests, which scattered the horizon's own edge points (the line chosen is then a
+        // compromise, 5–15° off). The sinusoid along the crests is measured and subtracted from
+        // the working image, and the region search finds the horizon in regions that no longer
+        // hold the stripes; for a family, only a line other than the chosen one replaces it.
+        let striped = !climbed && profile.striped();
+        let crest = if striped {
+            Some(chosen.line)
+        } else if !climbed {
+            stripe_family(&scored)
+        } else {
+            None
+        };
         let mut sample_count = sample_count;
         let mut destriped = false;
-        if !climbed
-            && profile.striped()
-            && let Some(wave) = stripes::Wave::estimate(ws.grey, geo, &camera, chosen.line)
+        if let Some(crest) = crest
+            && let Some(wave) = stripes::Wave::estimate(ws.grey, geo, &camera, crest)
         {
             wave.subtract(ws.grey, geo);
             sample_count = edges::collect_samples(frame, ws.grey, geo, &camera, ws.samples);
             let clean = ws.samples.get(..sample_count).unwrap_or(&[]);
-            if let Some(line) = region::quick_search(clean, libm::sqrtf(max_radius2)) {
-                let separation = hough::separation(clean, line, 2.0 * rho.step);
-                if separation.explained >= MIN_EXPLAINED {
-                    let horizon = self.orient(line, separation.bright_is_sky);
-                    chosen = Scored {
-                        line,
-                        horizon,
-                        explained: separation.explained,
-                        coverage: 1.0,
-                        score: separation.explained,
-                        continues_track: self.continues_track(&horizon),
-                    };
-                    from_region = true;
-                    destriped = true;
-                }
+            let found = region::quick_search(clean, libm::sqrtf(max_radius2))
+                .map(|line| (line, hough::separation(clean, line, 2.0 * rho.step)))
+                .filter(|(line, separation)| {
+                    separation.explained >= MIN_EXPLAINED
+                        && (striped || !same_line(*line, chosen.line, rho.step))
+                });
+            if let Some((line, separation)) = found {
+                let horizon = self.orient(line, separation.bright_is_sky);
+                chosen = Scored {
+                    line,
+                    horizon,
+                    explained: separation.explained,
+                    coverage: 1.0,
+                    score: separation.explained,
+                    continues_track: self.continues_track(&horizon),
+                };
+                from_region = true;
+                destriped = true;
+            } else {
+                // Back to the frame as it was.
+                edges::build_working_image(frame, geo, ws.grey);
+                sample_count = edges::collect_samples(frame, ws.grey, geo, &camera, ws.samples);
             }
         }
         let samples = ws.samples.get(..sample_count).unwrap_or(&[]);
@@ -1008,6 +1024,31 @@ const REGION_TRIGGER: f32 = 0.3;
 const REGION_MARGIN: f32 = 1.5;
 /// Most confidence a line found by regions gets (its edges are not what drew it).
 const REGION_CONFIDENCE: f32 = 0.8;
+
+/// Parallel candidates (within [`FAMILY_ANGLE`]) that make a family of stripes.
+const FAMILY: usize = 3;
+const FAMILY_ANGLE: f32 = 1.5 * PI / 180.0;
+
+/// A candidate with at least [`FAMILY`] − 1 others parallel to it (either polarity): the crests
+/// of a periodic pattern. The one with the most parallels, the best scored among equals.
+fn stripe_family(scored: &[Option<Scored>]) -> Option<Line> {
+    let parallel = |a: Line, b: Line| {
+        let d = libm::fabsf(wrap_angle(a.angle - b.angle));
+        d < FAMILY_ANGLE || PI - d < FAMILY_ANGLE
+    };
+    let mut best: Option<(usize, f32, Line)> = None;
+    for s in scored.iter().flatten() {
+        let count = scored
+            .iter()
+            .flatten()
+            .filter(|o| parallel(o.line, s.line))
+            .count();
+        if count >= FAMILY && best.is_none_or(|(c, score, _)| (count, s.score) > (c, score)) {
+            best = Some((count, s.score, s.line));
+        }
+    }
+    best.map(|(_, _, line)| line)
+}
 
 /// Candidates kept per direction (either polarity, within [`DIRECTION_BINS`] angle bins).
 const PER_DIRECTION: usize = 2;
