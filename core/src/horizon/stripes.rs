@@ -18,8 +18,8 @@ use super::hough::Line;
 use core::f32::consts::PI;
 
 /// Profile bins, each [`BIN`] working pixels along the crests' normal: the working image's
-/// diagonal (at most 250 px at 200 × 150) with room.
-const BINS: usize = 640;
+/// diagonal (250 px at 200 × 150, 226 at 160 × 160).
+const BINS: usize = 512;
 const BIN: f32 = 0.5;
 /// Periods searched (working pixels): `synth` draws 5–30 px at 320 px (2.5–15 working pixels
 /// at both sizes).
@@ -30,6 +30,9 @@ const COARSE_DK: f32 = 0.015;
 const FINE_DK: f32 = 0.002;
 /// Bins either side of the derivative's spike (the horizon's step) left out of the fit.
 const SPIKE_EXCLUSION: f32 = 4.0;
+/// Columns of the subtraction's table: working images are at most 200 wide (250 for frames
+/// over 3200 px, binned at most 16×; columns past the table keep their stripes).
+const TABLE: usize = 256;
 /// Least amplitude (levels of the working image) and share of the derivative's variance
 /// the fitted sinusoid must explain to be subtracted.
 const MIN_AMPLITUDE: f32 = 3.0;
@@ -51,6 +54,9 @@ struct Bin {
     n: f32,
     sum: f32,
     d: f32,
+    /// `sin(k·d)` and `cos(k·d)` at the bin's mean place, once `k` is known.
+    sin: f32,
+    cos: f32,
 }
 
 impl Wave {
@@ -107,19 +113,10 @@ impl Wave {
             }
         }
         // The derivative over two working pixels, where both ends were filled.
-        let lag = (1.0 / BIN) as usize;
-        let derivative = |j: usize| -> Option<(f32, usize, usize)> {
-            let (a, b) = (j.checked_sub(lag)?, j + lag);
-            let (ba, bb) = (bins.get(a)?, bins.get(b)?);
-            if ba.n <= 0.0 || bb.n <= 0.0 {
-                return None;
-            }
-            Some((bb.sum - ba.sum, a, b))
-        };
         // The derivative at each bin's nominal place (0 where it is not defined).
         let mut slope = [0.0f32; BINS];
         for (j, out) in slope.iter_mut().enumerate().take(used) {
-            if let Some((dv, _, _)) = derivative(j) {
+            if let Some((dv, _, _)) = derivative(&bins, j) {
                 *out = dv;
             }
         }
@@ -135,16 +132,14 @@ impl Wave {
 
         // Least squares of the derivative on the sinusoid's own derivative (and a constant
         // slope), at the bins' mean places; twice, the second time without the spike.
+        for b in bins.iter_mut().take(used) {
+            (b.sin, b.cos) = (libm::sinf(k * b.d), libm::cosf(k * b.d));
+        }
         let at = |j: usize| bins.get(j).map_or(0.0, |b| b.d);
         let basis = |j: usize| -> Option<(f32, f32, f32, f32)> {
-            let (dv, a, b) = derivative(j)?;
-            let (xa, xb) = (at(a), at(b));
-            Some((
-                libm::sinf(k * xb) - libm::sinf(k * xa),
-                libm::cosf(k * xb) - libm::cosf(k * xa),
-                xb - xa,
-                dv,
-            ))
+            let (dv, a, b) = derivative(&bins, j)?;
+            let (ba, bb) = (bins.get(a)?, bins.get(b)?);
+            Some((bb.sin - ba.sin, bb.cos - ba.cos, bb.d - ba.d, dv))
         };
         let fit = |exclude: Option<f32>| -> Option<(f32, f32, f32, f32)> {
             // Normal equations of [s, c, 1] (symmetric 3 × 3) and the right-hand side.
@@ -208,25 +203,43 @@ impl Wave {
             .then_some(wave)
     }
 
-    /// Subtracts the sinusoid from the working image.
+    /// Subtracts the sinusoid from the working image. Along a row it is
+    /// `P·sin(k·ax·wx) + Q·cos(k·ax·wx)` with `P`, `Q` set by the row: one table of the
+    /// column's sine and cosine, then two multiplies per pixel.
     pub(crate) fn subtract(&self, grey: &mut [u8], geo: Working) {
-        let step = (libm::cosf(self.k * self.ax), libm::sinf(self.k * self.ax));
+        let mut table = [(0.0f32, 0.0f32); TABLE];
+        for (wx, t) in table.iter_mut().enumerate() {
+            let theta = self.k * self.ax * wx as f32;
+            *t = (libm::sinf(theta), libm::cosf(theta));
+        }
         for (wy, row) in grey
             .chunks_exact_mut(geo.width.max(1))
             .take(geo.height)
             .enumerate()
         {
             let phase = self.k * self.ay * wy as f32;
-            let (mut c, mut s) = (libm::cosf(phase), libm::sinf(phase));
-            for p in row.iter_mut() {
-                let value = f32::from(*p) - self.sin_part * s - self.cos_part * c;
-                *p = (value + 0.5).clamp(0.0, 255.0) as u8;
-                let next_c = c * step.0 - s * step.1;
-                s = s * step.0 + c * step.1;
-                c = next_c;
+            let (sp, cp) = (libm::sinf(phase), libm::cosf(phase));
+            // sin(θ + φ) = sin θ cos φ + cos θ sin φ, cos(θ + φ) = cos θ cos φ − sin θ sin φ.
+            let p = self.sin_part * cp - self.cos_part * sp;
+            let q = self.sin_part * sp + self.cos_part * cp;
+            for (px, &(s, c)) in row.iter_mut().zip(table.iter()) {
+                let value = f32::from(*px) - p * s - q * c;
+                *px = (value + 0.5).clamp(0.0, 255.0) as u8;
             }
         }
     }
+}
+
+/// The profile's difference over two working pixels about bin `j` (its mean there, both
+/// bins' indices), where both ends were filled.
+fn derivative(bins: &[Bin], j: usize) -> Option<(f32, usize, usize)> {
+    let lag = (1.0 / BIN) as usize;
+    let (a, b) = (j.checked_sub(lag)?, j + lag);
+    let (ba, bb) = (bins.get(a)?, bins.get(b)?);
+    if ba.n <= 0.0 || bb.n <= 0.0 {
+        return None;
+    }
+    Some((bb.sum - ba.sum, a, b))
 }
 
 /// Wavenumbers whose periodogram one pass over the profile computes: independent
