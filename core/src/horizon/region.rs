@@ -141,10 +141,13 @@ fn search_with(samples: &[Sample], extent: f32, thin: usize) -> Option<Line> {
     let mut coarse: Option<(f32, f32, f32)> = None;
     let mut coarse_angle = 0.0;
     let directions = COARSE_DIRECTIONS / thin.max(1);
+    let coarse_stride = thin * thin;
+    let coarse_total = sum_of(samples, coarse_stride);
     let total = sum_of(samples, thin);
     for i in 0..directions {
         let angle = i as f32 * PI / directions as f32;
-        if let Some(split) = best_split::<COARSE_BINS>(samples, thin, total, angle, -extent, width)
+        if let Some(split) =
+            best_split::<COARSE_BINS>(samples, coarse_stride, coarse_total, angle, -extent, width)
             && coarse.is_none_or(|(_, v, _)| split.1 > v)
         {
             coarse = Some(split);
