@@ -11,6 +11,13 @@
 //! its amplitude and phase are a least-squares fit of that derivative away from the spike. The
 //! fitted sinusoid is then subtracted from every working pixel, and the region search finds
 //! the horizon among regions that no longer hold the stripes.
+//!
+//! Stripes at an angle to the horizon scatter its edge points instead, and the line chosen is
+//! a compromise; their crests are then a family of parallel candidates, and the measurement
+//! runs along one of them (see `stripe_family` in the parent module).
+//!
+//! The crests are straight in the image's pixels: the line's direction is taken to pixels
+//! through the focal lengths only, which on a distorted camera is true near the centre.
 
 use super::camera::Camera;
 use super::edges::Working;
@@ -28,7 +35,8 @@ const MAX_PERIOD: f32 = 24.0;
 /// Coarse and fine steps of the wavenumber search (rad per working pixel).
 const COARSE_DK: f32 = 0.015;
 const FINE_DK: f32 = 0.002;
-/// Bins either side of the derivative's spike (the horizon's step) left out of the fit.
+/// Working pixels either side of the derivative's spike (the horizon's step) left out of the
+/// second fit.
 const SPIKE_EXCLUSION: f32 = 4.0;
 /// Columns of the subtraction's table: working images are at most 200 wide (250 for frames
 /// over 3200 px, binned at most 16×; columns past the table keep their stripes).
@@ -141,7 +149,7 @@ impl Wave {
             let (ba, bb) = (bins.get(a)?, bins.get(b)?);
             Some((bb.sin - ba.sin, bb.cos - ba.cos, bb.d - ba.d, dv))
         };
-        let fit = |exclude: Option<f32>| -> Option<(f32, f32, f32, f32)> {
+        let fit = |exclude: Option<f32>| -> Option<(f32, f32, f32)> {
             // Normal equations of [s, c, 1] (symmetric 3 × 3) and the right-hand side.
             let (mut ss, mut sc, mut s1, mut cc, mut c1, mut one) =
                 (0.0f32, 0.0, 0.0, 0.0, 0.0, 0.0);
@@ -170,9 +178,9 @@ impl Wave {
             let mean_slope = if one > 0.0 { y1 / one } else { 0.0 };
             let explained = alpha * sy + beta * cy + gamma * y1 - mean_slope * y1;
             let total = yy - mean_slope * y1;
-            Some((alpha, beta, explained / total.max(1e-6), 0.0))
+            Some((alpha, beta, explained / total.max(1e-6)))
         };
-        let (alpha, beta, _, _) = fit(None)?;
+        let (alpha, beta, _) = fit(None)?;
         // The spike: the largest residual of the first fit.
         let mut spike: Option<(f32, f32)> = None;
         for j in 0..used {
@@ -183,7 +191,7 @@ impl Wave {
                 }
             }
         }
-        let (alpha, beta, explained, _) = fit(spike.map(|(x, _)| x))?;
+        let (alpha, beta, explained) = fit(spike.map(|(x, _)| x))?;
         let wave = Wave {
             ax,
             ay,

@@ -868,7 +868,7 @@ fn stripes_parallel_to_the_horizon_are_subtracted() {
     // (roll or pitch 1.5–9° off, a quarter of the confidence) on 7 of the 14 light-haze frames
     // and on all 14 thick-haze ones. Now the light haze is read within 2° at both sizes; a
     // thick haze (a long ramp under a small step) puts the region's split mid-ramp, 2–4° low,
-    // and that answer stays under the gate (2–3 of 7 right).
+    // and that answer stays under the gate (3 of 7 right at each size).
     let cases = [
         // roll, pitch (deg), stripe angle from the horizon's (deg), period (px at 320),
         // amplitude, hum bar (levels)
