@@ -21,6 +21,7 @@ mod frame;
 mod hough;
 mod profile;
 mod region;
+mod stripes;
 #[cfg(test)]
 mod tests;
 mod upper;
@@ -635,6 +636,80 @@ impl HorizonDetector {
             climbed = true;
         }
 
+        // 7c: interference (see `stripes`). A striped sky above the chosen line: the line is a
+        // crest nearly parallel to the horizon. A family of parallel candidates: the stripes'
+        // crests, which scattered the horizon's own edge points (the line chosen is then a
+        // compromise, 5–15° off). The sinusoid along the crests is measured and subtracted from
+        // the working image, and the region search finds the horizon in regions that no longer
+        // hold the stripes; for a family, only a line other than the chosen one replaces it.
+        let striped = !climbed && profile.striped();
+        let crest = if striped {
+            Some(chosen.line)
+        } else if !climbed && chosen.score < FAMILY_WEAK_SCORE {
+            stripe_family(&scored, rho.step)
+        } else {
+            None
+        };
+        let mut sample_count = sample_count;
+        let mut destriped = false;
+        if let Some(crest) = crest
+            && let Some(wave) = stripes::Wave::estimate(ws.grey, geo, &camera, crest)
+        {
+            wave.subtract(ws.grey, geo);
+            sample_count = edges::collect_samples(frame, ws.grey, geo, &camera, ws.samples);
+            let clean = ws.samples.get(..sample_count).unwrap_or(&[]);
+            let found = region::quick_search(clean, libm::sqrtf(max_radius2))
+                .map(|line| (line, hough::separation(clean, line, 2.0 * rho.step)))
+                .filter(|(line, separation)| {
+                    separation.explained >= MIN_EXPLAINED
+                        && (striped || !same_line(*line, chosen.line, rho.step))
+                });
+            if let Some((line, separation)) = found {
+                let horizon = self.orient(line, separation.bright_is_sky);
+                chosen = Scored {
+                    line,
+                    horizon,
+                    explained: separation.explained,
+                    coverage: 1.0,
+                    score: separation.explained,
+                    continues_track: self.continues_track(&horizon),
+                };
+                from_region = true;
+                destriped = true;
+            } else {
+                // Back to the frame as it was.
+                edges::build_working_image(frame, geo, ws.grey);
+                sample_count = edges::collect_samples(frame, ws.grey, geo, &camera, ws.samples);
+            }
+        }
+        let samples = ws.samples.get(..sample_count).unwrap_or(&[]);
+        let sky_brighter = if destriped {
+            libm::fabsf(wrap_angle(
+                chosen.horizon.camera_roll_rad - (chosen.line.angle + PI),
+            )) < 0.5 * PI
+        } else {
+            sky_brighter
+        };
+        // A region's split may lie inside the transition (mid-ramp under haze) rather than at
+        // its top, where the horizon is; a clear step above it in the same transition makes
+        // the answer a guess between the two. Measured on `synth`, moving the line there
+        // read more crests and sky gradients than ramps: it stays, at a lower confidence.
+        let mut ambiguous = false;
+        if destriped {
+            profile = upper::Profile::measure(
+                ws.grey,
+                geo,
+                &camera,
+                chosen.line,
+                if sky_brighter { 1.0 } else { -1.0 },
+                rho.step,
+                (HIGHER_EDGE_REACH / rho.step) as usize,
+            );
+            ambiguous = profile.top_of_transition().is_some_and(|top| {
+                libm::fabsf(top.rho - chosen.line.rho) > TOP_AMBIGUITY * rho.step
+            });
+        }
+
         // Confidence: the line must split the frame into clearly different halves, be drawn
         // by edges along most of its length, and have no comparable rival elsewhere.
         // A ground edge the search climbed over is below the horizon by construction, not a
@@ -665,7 +740,7 @@ impl HorizonDetector {
         if edge_stats.dropped > 0 {
             confidence *= 0.8;
         }
-        if profile.striped() {
+        if profile.striped() || ambiguous {
             confidence *= STRIPED_CONFIDENCE;
         }
         // Which side is the sky must be clear: brighter, bluer and smoother together. Looking
@@ -951,12 +1026,46 @@ const CLEAR_SKY_EVIDENCE: f32 = 1.0;
 /// crest next to the horizon explains nearly as much of the frame, and it is not known which.
 const STRIPED_CONFIDENCE: f32 = 0.25;
 
+/// A destriped line with a clear step more than this many working pixels above it, in the same
+/// transition, is ambiguous (see `upper::Profile::top_of_transition`).
+const TOP_AMBIGUITY: f32 = 2.0;
+
 /// The region search runs when no edge line explains this share of the frame's variance ...
 const REGION_TRIGGER: f32 = 0.3;
 /// ... and its line replaces them when it explains this many times more than the best.
 const REGION_MARGIN: f32 = 1.5;
 /// Most confidence a line found by regions gets (its edges are not what drew it).
 const REGION_CONFIDENCE: f32 = 0.8;
+
+/// A family of stripes is looked for only under a chosen line scoring less than this (its
+/// edges drawing under half its length, or its split weak): a clear horizon needs no second
+/// look, and the measurement costs about 0.1 ms.
+const FAMILY_WEAK_SCORE: f32 = 0.5;
+/// Parallel candidates (within [`FAMILY_ANGLE`]) that make a family of stripes.
+const FAMILY: usize = 3;
+const FAMILY_ANGLE: f32 = 1.5 * PI / 180.0;
+
+/// A candidate with at least [`FAMILY`] − 1 others parallel to it (either polarity) and not
+/// the same line: the crests of a periodic pattern (several candidates refined onto one
+/// horizon are not a family). The one with the most parallels, the best scored among equals.
+fn stripe_family(scored: &[Option<Scored>], rho_step: f32) -> Option<Line> {
+    let parallel = |a: Line, b: Line| {
+        let d = libm::fabsf(wrap_angle(a.angle - b.angle));
+        (d < FAMILY_ANGLE || PI - d < FAMILY_ANGLE) && !same_line(a, b, rho_step)
+    };
+    let mut best: Option<(usize, f32, Line)> = None;
+    for s in scored.iter().flatten() {
+        let count = 1 + scored
+            .iter()
+            .flatten()
+            .filter(|o| parallel(o.line, s.line))
+            .count();
+        if count >= FAMILY && best.is_none_or(|(c, score, _)| (count, s.score) > (c, score)) {
+            best = Some((count, s.score, s.line));
+        }
+    }
+    best.map(|(_, _, line)| line)
+}
 
 /// Candidates kept per direction (either polarity, within [`DIRECTION_BINS`] angle bins).
 const PER_DIRECTION: usize = 2;

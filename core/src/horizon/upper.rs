@@ -30,6 +30,10 @@ const STRIPE_ALTERNATIONS: usize = 3;
 /// A step of the other polarity this strong (a share of the found one's) between the chosen
 /// line and the found step rejects it.
 const OPPOSITE_SHARE: f32 = 0.5;
+/// Share of its rise the profile may fall back within one transition ...
+const TRANSITION_FALL: f32 = 0.25;
+/// ... and share of its largest step that its top step must have.
+const TOP_SHARE: f32 = 0.5;
 /// The first bins above the chosen line belong to its own (smoothed) transition.
 const CLEAR_OF_CHOSEN: usize = 4;
 
@@ -233,6 +237,53 @@ impl Profile {
             }
         }
         alternations >= STRIPE_ALTERNATIONS
+    }
+
+    /// The top of the transition the line lies in (a line found by regions splits it in its
+    /// middle: under haze, mid-ramp): walking sky-ward while the profile does not fall back
+    /// by [`TRANSITION_FALL`] of what it rose (a plateau of airlight is crossed), the sky-most
+    /// clear step of the sky's polarity with at least [`TOP_SHARE`] of the walk's largest.
+    /// `None` when there is none above the line.
+    pub(crate) fn top_of_transition(&self) -> Option<Line> {
+        let polarity = if self.sky_ward > 0.0 { 1.0 } else { -1.0 };
+        let value = |i: usize| {
+            self.bins
+                .get(i)
+                .filter(|b| b.n >= 8.0)
+                .map(|b| polarity * b.mean())
+        };
+        let start = value(BELOW)?;
+        let mut high = start;
+        let mut end = BELOW;
+        let mut largest = 0.0f32;
+        while end < BELOW + self.reach {
+            let Some(v) = value(end + 1) else {
+                break;
+            };
+            high = high.max(v);
+            if v < high - (TRANSITION_FALL * (high - start)).max(MIN_STEP_LEVELS) {
+                break;
+            }
+            end += 1;
+        }
+        let clear = |k: usize| {
+            self.step_at(k).filter(|&(contrast, significance)| {
+                contrast >= MIN_STEP_LEVELS && significance >= MIN_STEP_SIGNIFICANCE
+            })
+        };
+        for k in BELOW - 1..=end {
+            if let Some((contrast, _)) = clear(k) {
+                largest = largest.max(contrast);
+            }
+        }
+        let top = (BELOW - 1..=end)
+            .rev()
+            .find(|&k| clear(k).is_some_and(|(c, _)| c >= TOP_SHARE * largest))?;
+        let offset = (top as f32 - BELOW as f32) * self.rho_step;
+        Some(Line {
+            angle: self.line.angle,
+            rho: self.line.rho + self.sky_ward * offset,
+        })
     }
 
     /// The sky-most step of the sky's polarity within the reach above the line.
