@@ -128,9 +128,36 @@ pub(crate) fn build_working_image(frame: &Frame<'_>, geo: Working, grey: &mut [u
     }
 }
 
+/// Output pixels of [`bin_two_rows`] per pass of its two loops.
+const BIN_RUN: usize = 16;
+
 /// Luma of 2×2 blocks of two frame rows.
 fn bin_two_rows(top: &[u8], bottom: &[u8], colour: bool, out: &mut [u8]) {
-    if colour {
+    if colour && top.len() == bottom.len() {
+        // The two rows' sums first, byte by byte (one vectorised loop), then the channel sums
+        // and the luma of each block from them: the same integers as summing the block's four
+        // pixels directly, in half the scalar work.
+        for ((o, a), b) in out
+            .chunks_mut(BIN_RUN)
+            .zip(top.chunks(6 * BIN_RUN))
+            .zip(bottom.chunks(6 * BIN_RUN))
+        {
+            let mut sums = [0u16; 6 * BIN_RUN];
+            for ((s, &t), &b) in sums.iter_mut().zip(a).zip(b) {
+                *s = u16::from(t) + u16::from(b);
+            }
+            // Only whole blocks: a partial last run leaves the outputs it has no pixels for.
+            let whole = a.len() / 6;
+            for (o, px) in o.iter_mut().take(whole).zip(sums.chunks_exact(6)) {
+                if let &[r0, g0, b0, r1, g1, b1] = px {
+                    let r = u32::from(r0) + u32::from(r1);
+                    let g = u32::from(g0) + u32::from(g1);
+                    let b = u32::from(b0) + u32::from(b1);
+                    *o = ((77 * r + 150 * g + 29 * b + 512) >> 10) as u8;
+                }
+            }
+        }
+    } else if colour {
         for ((o, a), b) in out
             .iter_mut()
             .zip(top.chunks_exact(6))

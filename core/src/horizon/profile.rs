@@ -389,7 +389,7 @@ pub(crate) fn place(
         profile.columns += 1;
         for c in first..=last {
             let d = (c as f32 - b) * k;
-            let bin = libm::floorf(d / BIN_PX + HALF_BINS as f32 + 0.5);
+            let bin = super::hough::floor(d / BIN_PX + HALF_BINS as f32 + 0.5);
             if !(0.0..BINS as f32).contains(&bin) {
                 continue;
             }
