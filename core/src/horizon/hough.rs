@@ -102,24 +102,18 @@ pub(crate) fn vote(
     let offset = rho.half as f32 + 0.5;
     let window = window.min(ANGLE_BINS / 4);
     let limit = (bins - 1) as f32;
-    // A point votes at most once per angle bin, so no cell counts more votes than there are
-    // points: with fewer than 65535 of them the plain increment cannot wrap and is the
-    // saturating one.
-    let plain = edges.len() < usize::from(u16::MAX);
     let mut increment = |index: usize| {
         if let Some(cell) = accumulator.get_mut(index) {
-            *cell = if plain {
-                cell.wrapping_add(1)
-            } else {
-                cell.saturating_add(1)
-            };
+            *cell = cell.saturating_add(1);
         }
     };
     let mut vote_at = |bin: usize, s: f32, c: f32, point: &EdgePoint| {
         let f = (point.x * s + point.y * c) * inverse_step + offset;
         // `f` in [0, bins): NaN fails the test too.
         if f >= 0.0 && f < limit + 1.0 {
-            increment(bin * bins + f as usize);
+            // Through i32: the same whole part of an `f` in range, in half the instructions of
+            // the saturating conversion to a 64-bit index.
+            increment(bin * bins + f as i32 as usize);
         }
     };
     for point in edges {
