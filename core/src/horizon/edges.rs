@@ -214,6 +214,13 @@ fn magnitude_row(grey: &[u8], geo: Working, y: usize, out: &mut [u16]) {
     sobel_row(grey, geo, y, out, None);
 }
 
+/// One output's pixels as the zips of [`sobel_row`] give them: the left column (above, at,
+/// below), the centre column (above, below) and the right column (above, at, below).
+type Window<'a> = (
+    (((&'a u8, &'a u8), &'a u8), (&'a u8, &'a u8)),
+    ((&'a u8, &'a u8), &'a u8),
+);
+
 /// [`magnitude_row`], and when `components` is given the Sobel `gx`, `gy` of the row as well
 /// (`i16` bits in `u16`, zero where the magnitude is), so that the edge pass does not compute
 /// each candidate's gradient a second time.
@@ -253,10 +260,7 @@ fn sobel_row(
     let lefts = a0.iter().zip(m0).zip(b0);
     let centres = a1.iter().zip(b1);
     let rights = a2.iter().zip(m2).zip(b2);
-    let sobel = |((((&al, &ml), &bl), (&ac, &bc)), ((&ar, &mr), &br)): (
-        (((&u8, &u8), &u8), (&u8, &u8)),
-        ((&u8, &u8), &u8),
-    )| {
+    let sobel = |((((&al, &ml), &bl), (&ac, &bc)), ((&ar, &mr), &br)): Window<'_>| {
         let (al, ml, bl, ac, bc, ar, mr, br) = (
             i16::from(al),
             i16::from(ml),

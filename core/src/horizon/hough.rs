@@ -27,7 +27,8 @@ pub(crate) fn wrap_angle(a: f32) -> f32 {
 pub(crate) fn floor(x: f32) -> f32 {
     // Below 2^23 in magnitude the truncation to i32 and back is exact; beyond it (and for NaN
     // and infinities) every f32 is already whole, which libm handles.
-    if !(libm::fabsf(x) < 8_388_608.0) {
+    let magnitude = libm::fabsf(x);
+    if magnitude.is_nan() || magnitude >= 8_388_608.0 {
         return libm::floorf(x);
     }
     // Truncation, one less where it went up (negative, not whole); without branches, as the
