@@ -21,8 +21,8 @@ pub(crate) fn wrap_angle(a: f32) -> f32 {
     a - PI
 }
 
-/// `floor(x)`, bit for bit what `libm::floorf` returns, without its call: the hot loops
-/// (a bin per edge point and per profile pixel) spent more in the call than in the rest.
+/// `floor(x)`, bit for bit what `libm::floorf` returns, without its call (the angle bin of
+/// every edge point took one; the profile's bins need no floor at all, see `profile::place`).
 #[inline]
 pub(crate) fn floor(x: f32) -> f32 {
     // Below 2^23 in magnitude the truncation to i32 and back is exact; beyond it (and for NaN
