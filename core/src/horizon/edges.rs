@@ -91,46 +91,94 @@ pub(crate) fn build_working_image(frame: &Frame<'_>, geo: Working, grey: &mut [u
             continue;
         }
         if s == 2 {
-            // The common case (640-wide frames), unrolled: per-block loops cost more than
+            // The common case (frames 201–400 px wide), unrolled: per-block loops cost more than
             // the arithmetic.
             bin_two_rows(frame.row(wy * 2), frame.row(wy * 2 + 1), colour, out_row);
             continue;
         }
-        // The block's rows, then channel sums per block and one luma per block.
-        let rows: [&[u8]; MAX_SCALE] =
-            core::array::from_fn(|dy| if dy < s { frame.row(wy * s + dy) } else { &[] });
-        let area = (s * s) as u32;
-        let bytes_per_block = if colour { 3 * s } else { s };
-        for (wx, o) in out_row.iter_mut().enumerate() {
-            let span = wx * bytes_per_block..(wx + 1) * bytes_per_block;
-            let (mut r, mut g, mut b) = (0u32, 0u32, 0u32);
-            for row in rows.iter().take(s) {
-                let block = row.get(span.clone()).unwrap_or(&[]);
-                if colour {
-                    for px in block.chunks_exact(3) {
-                        if let &[pr, pg, pb] = px {
-                            r += u32::from(pr);
-                            g += u32::from(pg);
-                            b += u32::from(pb);
-                        }
-                    }
-                } else {
-                    r += block.iter().map(|&p| u32::from(p)).sum::<u32>();
+        bin_rows(frame, wy, s, colour, out_row);
+    }
+}
+
+/// Bytes of frame row summed per pass of [`bin_rows`].
+const COLUMN_SUMS: usize = 768;
+
+/// Luma of the `s`×`s` blocks of working row `wy` (`s` ≥ 3). The block's rows are summed byte
+/// by byte first (a vectorised loop per row, over a run of blocks), then each block's channel
+/// sums are read off those column sums: the same integers as summing block by block, where the
+/// loop per block and per row cost most of the detector at 640×480.
+fn bin_rows(frame: &Frame<'_>, wy: usize, s: usize, colour: bool, out_row: &mut [u8]) {
+    let rows: [&[u8]; MAX_SCALE] =
+        core::array::from_fn(|dy| if dy < s { frame.row(wy * s + dy) } else { &[] });
+    let area = (s * s) as u32;
+    let bytes_per_pixel = if colour { 3 } else { 1 };
+    let bytes_per_block = bytes_per_pixel * s;
+    let blocks_per_pass = (COLUMN_SUMS / bytes_per_block).max(1);
+    for (pass, out) in out_row.chunks_mut(blocks_per_pass).enumerate() {
+        let start = pass * blocks_per_pass * bytes_per_block;
+        let len = out.len() * bytes_per_block;
+        let mut column_sums = [0u16; COLUMN_SUMS];
+        let Some(sums) = column_sums.get_mut(..len) else {
+            continue;
+        };
+        // At most 16 rows of 255: a u16 holds the sum.
+        for row in rows.iter().take(s) {
+            if let Some(bytes) = row.get(start..start + len) {
+                for (sum, &byte) in sums.iter_mut().zip(bytes) {
+                    *sum += u16::from(byte);
                 }
             }
+        }
+        for (o, block) in out.iter_mut().zip(sums.chunks_exact(bytes_per_block)) {
             *o = if colour {
+                let (mut r, mut g, mut b) = (0u32, 0u32, 0u32);
+                for px in block.chunks_exact(3) {
+                    if let &[pr, pg, pb] = px {
+                        r += u32::from(pr);
+                        g += u32::from(pg);
+                        b += u32::from(pb);
+                    }
+                }
                 let weighted = 77 * r + 150 * g + 29 * b;
                 ((weighted + 128 * area) / (256 * area)) as u8
             } else {
-                ((r + area / 2) / area) as u8
+                let sum = block.iter().map(|&p| u32::from(p)).sum::<u32>();
+                ((sum + area / 2) / area) as u8
             };
         }
     }
 }
 
+/// Output pixels of [`bin_two_rows`] per pass of its two loops.
+const BIN_RUN: usize = 16;
+
 /// Luma of 2×2 blocks of two frame rows.
 fn bin_two_rows(top: &[u8], bottom: &[u8], colour: bool, out: &mut [u8]) {
-    if colour {
+    if colour && top.len() == bottom.len() {
+        // The two rows' sums first, byte by byte (one vectorised loop), then the channel sums
+        // and the luma of each block from them: the same integers as summing the block's four
+        // pixels directly, in half the scalar work.
+        for ((o, a), b) in out
+            .chunks_mut(BIN_RUN)
+            .zip(top.chunks(6 * BIN_RUN))
+            .zip(bottom.chunks(6 * BIN_RUN))
+        {
+            let mut sums = [0u16; 6 * BIN_RUN];
+            for ((s, &t), &b) in sums.iter_mut().zip(a).zip(b) {
+                *s = u16::from(t) + u16::from(b);
+            }
+            // Only whole blocks: a partial last run leaves the outputs it has no pixels for.
+            let whole = a.len() / 6;
+            for (o, px) in o.iter_mut().take(whole).zip(sums.chunks_exact(6)) {
+                if let &[r0, g0, b0, r1, g1, b1] = px {
+                    let r = u32::from(r0) + u32::from(r1);
+                    let g = u32::from(g0) + u32::from(g1);
+                    let b = u32::from(b0) + u32::from(b1);
+                    *o = ((77 * r + 150 * g + 29 * b + 512) >> 10) as u8;
+                }
+            }
+        }
+    } else if colour {
         for ((o, a), b) in out
             .iter_mut()
             .zip(top.chunks_exact(6))
@@ -157,25 +205,38 @@ fn bin_two_rows(top: &[u8], bottom: &[u8], colour: bool, out: &mut [u8]) {
     }
 }
 
-/// 3×3 Sobel at the centre of three 3-pixel windows (rows above, at, below).
-#[inline]
-fn sobel(above: &[u8], at: &[u8], below: &[u8]) -> (i32, i32) {
-    let (&[a0, a1, a2], &[m0, _, m2], &[b0, b1, b2]) = (above, at, below) else {
-        return (0, 0);
-    };
-    let [a0, a1, a2, m0, m2, b0, b1, b2] = [a0, a1, a2, m0, m2, b0, b1, b2].map(i32::from);
-    let gx = (a2 + 2 * m2 + b2) - (a0 + 2 * m0 + b0);
-    let gy = (b0 + 2 * b1 + b2) - (a0 + 2 * a1 + a2);
-    (gx, gy)
-}
-
 fn image_row(grey: &[u8], geo: Working, y: usize) -> &[u8] {
     grey.get(y * geo.width..(y + 1) * geo.width).unwrap_or(&[])
 }
 
 /// Gradient magnitude `|gx| + |gy|` of working row `y` (zero on the border rows/columns).
 fn magnitude_row(grey: &[u8], geo: Working, y: usize, out: &mut [u16]) {
+    sobel_row(grey, geo, y, out, None);
+}
+
+/// One output's pixels as the zips of [`sobel_row`] give them: the left column (above, at,
+/// below), the centre column (above, below) and the right column (above, at, below).
+type Window<'a> = (
+    (((&'a u8, &'a u8), &'a u8), (&'a u8, &'a u8)),
+    ((&'a u8, &'a u8), &'a u8),
+);
+
+/// [`magnitude_row`], and when `components` is given the Sobel `gx`, `gy` of the row as well
+/// (`i16` bits in `u16`, zero where the magnitude is), so that the edge pass does not compute
+/// each candidate's gradient a second time.
+fn sobel_row(
+    grey: &[u8],
+    geo: Working,
+    y: usize,
+    out: &mut [u16],
+    components: Option<(&mut [u16], &mut [u16])>,
+) {
     out.fill(0);
+    let mut components = components;
+    if let Some((gxs, gys)) = &mut components {
+        gxs.fill(0);
+        gys.fill(0);
+    }
     if y == 0 || y + 1 >= geo.height {
         return;
     }
@@ -199,9 +260,7 @@ fn magnitude_row(grey: &[u8], geo: Working, y: usize, out: &mut [u16]) {
     let lefts = a0.iter().zip(m0).zip(b0);
     let centres = a1.iter().zip(b1);
     let rights = a2.iter().zip(m2).zip(b2);
-    for (o, ((((&al, &ml), &bl), (&ac, &bc)), ((&ar, &mr), &br))) in
-        out.iter_mut().skip(1).zip(lefts.zip(centres).zip(rights))
-    {
+    let sobel = |((((&al, &ml), &bl), (&ac, &bc)), ((&ar, &mr), &br)): Window<'_>| {
         let (al, ml, bl, ac, bc, ar, mr, br) = (
             i16::from(al),
             i16::from(ml),
@@ -214,17 +273,30 @@ fn magnitude_row(grey: &[u8], geo: Working, y: usize, out: &mut [u16]) {
         );
         let gx = (ar + 2 * mr + br) - (al + 2 * ml + bl);
         let gy = (bl + 2 * bc + br) - (al + 2 * ac + ar);
-        *o = gx.unsigned_abs() + gy.unsigned_abs();
+        (gx, gy)
+    };
+    match components {
+        None => {
+            for (o, window) in out.iter_mut().skip(1).zip(lefts.zip(centres).zip(rights)) {
+                let (gx, gy) = sobel(window);
+                *o = gx.unsigned_abs() + gy.unsigned_abs();
+            }
+        }
+        Some((gxs, gys)) => {
+            for (((o, ox), oy), window) in out
+                .iter_mut()
+                .zip(gxs.iter_mut())
+                .zip(gys.iter_mut())
+                .skip(1)
+                .zip(lefts.zip(centres).zip(rights))
+            {
+                let (gx, gy) = sobel(window);
+                *o = gx.unsigned_abs() + gy.unsigned_abs();
+                *ox = gx as u16;
+                *oy = gy as u16;
+            }
+        }
     }
-}
-
-/// Gradient at one working pixel (border pixels have none).
-fn gradient_at(grey: &[u8], geo: Working, x: usize, y: usize) -> (i32, i32) {
-    if x == 0 || y == 0 || x + 1 >= geo.width || y + 1 >= geo.height {
-        return (0, 0);
-    }
-    let window = |row: usize| image_row(grey, geo, row).get(x - 1..x + 2).unwrap_or(&[]);
-    sobel(window(y - 1), window(y), window(y + 1))
 }
 
 /// Histogram bins of the gradient magnitude are 8 units wide (magnitudes reach 2040; a
@@ -330,7 +402,7 @@ pub(crate) struct EdgeStats {
 }
 
 /// Thinned edge points of the working image above `threshold`, undistorted, into `edges`.
-/// `rows` is scratch of at least 3 working rows.
+/// `rows` is scratch of at least [`EDGE_SCRATCH_ROWS`] working rows.
 pub(crate) fn collect_edges(
     grey: &[u8],
     geo: Working,
@@ -341,76 +413,107 @@ pub(crate) fn collect_edges(
 ) -> EdgeStats {
     let w = geo.width;
     let mut stats = EdgeStats::default();
-    let (r0, rest) = rows.split_at_mut(w.min(rows.len()));
-    let (r1, rest) = rest.split_at_mut(w.min(rest.len()));
-    let r2 = rest.get_mut(..w).unwrap_or(&mut []);
-    if r0.len() < w || r1.len() < w || r2.len() < w {
+    let mut scratch = rows.chunks_exact_mut(w.max(1));
+    let mut next = || scratch.next().unwrap_or(&mut []);
+    // Rows y−1, y, y+1: magnitudes, and the Sobel components of each.
+    let mut mags: [&mut [u16]; 3] = [next(), next(), next()];
+    let mut gxs: [&mut [u16]; 3] = [next(), next(), next()];
+    let mut gys: [&mut [u16]; 3] = [next(), next(), next()];
+    if gys[2].len() < w {
         return stats;
     }
-    // `mags[0]`, `mags[1]`, `mags[2]` hold the magnitudes of rows y−1, y, y+1.
-    let mut mags: [&mut [u16]; 3] = [r0, r1, r2];
-    magnitude_row(grey, geo, 0, mags[0]);
-    magnitude_row(grey, geo, 1, mags[1]);
+    for y in 0..2 {
+        if let (Some(m), Some(gx), Some(gy)) = (mags.get_mut(y), gxs.get_mut(y), gys.get_mut(y)) {
+            sobel_row(grey, geo, y, m, Some((gx, gy)));
+        }
+    }
     let mean_focal = 0.5 * (camera.fx + camera.fy);
     // Tangent step used to carry the gradient direction through the undistortion.
     let tangent_step = 2.0 * geo.scale as f32 / mean_focal;
+    // A zero magnitude is never an edge (a configured threshold of 0 included).
+    let threshold = threshold.max(1);
     for y in 1..geo.height.saturating_sub(1) {
-        magnitude_row(grey, geo, y + 1, mags[2]);
+        {
+            let [_, _, m] = &mut mags;
+            let [_, _, gx] = &mut gxs;
+            let [_, _, gy] = &mut gys;
+            sobel_row(grey, geo, y + 1, m, Some((gx, gy)));
+        }
         let [above, at, below] = &mags;
-        for (x, &m) in at.iter().enumerate() {
-            if m < threshold || m == 0 {
+        let [_, gx_row, _] = &gxs;
+        let [_, gy_row, _] = &gys;
+        // Most of a row is under the threshold (the budget keeps a few percent of the pixels
+        // above it): a block with none above it is passed over with one vectorised test.
+        for (block_index, block) in at.chunks(EDGE_BLOCK).enumerate() {
+            if !block.iter().fold(false, |any, &m| any | (m >= threshold)) {
                 continue;
             }
-            let (gx, gy) = gradient_at(grey, geo, x, y);
-            // Non-maximum suppression along the gradient, quantised to 8 directions
-            // (tan 22.5° ≈ 0.4142 ≈ 53/128).
-            let (ax, ay) = (gx.abs() * 128, gy.abs() * 128);
-            let (dx, dy): (isize, isize) = if ay <= gx.abs() * 53 {
-                (1, 0)
-            } else if ax <= gy.abs() * 53 {
-                (0, 1)
-            } else if (gx > 0) == (gy > 0) {
-                (1, 1)
-            } else {
-                (1, -1)
-            };
-            let neighbour = |dx: isize, dy: isize| -> i32 {
-                let row: &[u16] = match dy {
-                    -1 => above,
-                    0 => at,
-                    _ => below,
+            for (i, &m) in block.iter().enumerate() {
+                if m < threshold {
+                    continue;
+                }
+                let x = block_index * EDGE_BLOCK + i;
+                let component = |row: &[u16]| row.get(x).map_or(0, |&g| i32::from(g as i16));
+                let (gx, gy) = (component(gx_row), component(gy_row));
+                // Non-maximum suppression along the gradient, quantised to 8 directions
+                // (tan 22.5° ≈ 0.4142 ≈ 53/128).
+                let (ax, ay) = (gx.abs() * 128, gy.abs() * 128);
+                let (dx, dy): (isize, isize) = if ay <= gx.abs() * 53 {
+                    (1, 0)
+                } else if ax <= gy.abs() * 53 {
+                    (0, 1)
+                } else if (gx > 0) == (gy > 0) {
+                    (1, 1)
+                } else {
+                    (1, -1)
                 };
-                x.checked_add_signed(dx)
-                    .and_then(|xx| row.get(xx))
-                    .map_or(0, |&v| i32::from(v))
-            };
-            let forward = neighbour(dx, dy);
-            let backward = neighbour(-dx, -dy);
-            let m = i32::from(m);
-            if m < forward || m <= backward {
-                continue;
-            }
-            // Sub-pixel position of the ridge along the gradient (parabola through the three).
-            let curvature = backward - 2 * m + forward;
-            let offset = if curvature < 0 {
-                (0.5 * (backward - forward) as f32 / curvature as f32).clamp(-0.5, 0.5)
-            } else {
-                0.0
-            };
-            let Some(slot) = edges.get_mut(stats.count) else {
-                stats.dropped += 1;
-                continue;
-            };
-            let (u, v) = geo.to_frame(x as f32 + offset * dx as f32, y as f32 + offset * dy as f32);
-            if let Some(point) = undistort_edge(camera, u, v, gx, gy, tangent_step) {
-                *slot = point;
-                stats.count += 1;
+                let neighbour = |dx: isize, dy: isize| -> i32 {
+                    let row: &[u16] = match dy {
+                        -1 => above,
+                        0 => at,
+                        _ => below,
+                    };
+                    x.checked_add_signed(dx)
+                        .and_then(|xx| row.get(xx))
+                        .map_or(0, |&v| i32::from(v))
+                };
+                let forward = neighbour(dx, dy);
+                let backward = neighbour(-dx, -dy);
+                let m = i32::from(m);
+                if m < forward || m <= backward {
+                    continue;
+                }
+                // Sub-pixel position of the ridge along the gradient (parabola through the
+                // three).
+                let curvature = backward - 2 * m + forward;
+                let offset = if curvature < 0 {
+                    (0.5 * (backward - forward) as f32 / curvature as f32).clamp(-0.5, 0.5)
+                } else {
+                    0.0
+                };
+                let Some(slot) = edges.get_mut(stats.count) else {
+                    stats.dropped += 1;
+                    continue;
+                };
+                let (u, v) =
+                    geo.to_frame(x as f32 + offset * dx as f32, y as f32 + offset * dy as f32);
+                if let Some(point) = undistort_edge(camera, u, v, gx, gy, tangent_step) {
+                    *slot = point;
+                    stats.count += 1;
+                }
             }
         }
         mags.rotate_left(1);
+        gxs.rotate_left(1);
+        gys.rotate_left(1);
     }
     stats
 }
+
+/// Working rows of scratch [`collect_edges`] needs: magnitude, `gx` and `gy` of three rows.
+pub(crate) const EDGE_SCRATCH_ROWS: usize = 9;
+/// Pixels tested at once for any above the threshold.
+const EDGE_BLOCK: usize = 16;
 
 /// Moves one edge pixel and its gradient direction into normalised undistorted coordinates:
 /// the point itself by the inverse radial model, the direction by undistorting a second point
@@ -428,8 +531,10 @@ fn undistort_edge(
     // The intensity gradient with respect to normalised coordinates.
     let gnx = gx as f32 * camera.fx;
     let gny = gy as f32 * camera.fy;
-    let norm = libm::sqrtf(gnx * gnx + gny * gny);
-    if norm.is_nan() || norm <= 0.0 {
+    // The square root of a sum of squares is NaN or zero exactly when the sum is: the test
+    // needs no root, and the undistorted path below no norm.
+    let norm2 = gnx * gnx + gny * gny;
+    if norm2.is_nan() || norm2 <= 0.0 {
         return None;
     }
     if camera.k1 == 0.0 && camera.k2 == 0.0 {
@@ -441,6 +546,7 @@ fn undistort_edge(
             normal_angle: fast_atan2(gnx, gny),
         });
     }
+    let norm = libm::sqrtf(norm2);
     let (tx, ty) = (-gny / norm, gnx / norm);
     let (x, y) = camera.undistort_normalised(xd, yd)?;
     let (x2, y2) = camera.undistort_normalised(xd + tx * tangent_step, yd + ty * tangent_step)?;

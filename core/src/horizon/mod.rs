@@ -126,7 +126,7 @@ impl WorkspaceSizes {
 pub struct Workspace<'a> {
     /// Working (binned luma) image.
     pub grey: &'a mut [u8],
-    /// Three rows of gradient magnitudes.
+    /// Rows of gradient magnitudes and Sobel components (the edge pass keeps three rows).
     pub rows: &'a mut [u16],
     /// Edge points; when full, the remaining edge pixels are dropped (confidence drops too).
     pub edges: &'a mut [EdgePoint],
@@ -147,7 +147,7 @@ impl Workspace<'_> {
         let rho = rho_half_bins(geo);
         WorkspaceSizes {
             grey: geo.width * geo.height,
-            rows: 3 * geo.width,
+            rows: edges::EDGE_SCRATCH_ROWS * geo.width,
             edges: EDGES_PER_PERIMETER_PIXEL * (geo.width + geo.height),
             accumulator: ANGLE_BINS * (2 * rho + 1),
             samples: edges::sample_count(geo),

@@ -244,16 +244,47 @@ fn find_edge(profile: &Profile, sky_px: f32, ground_px: f32, sky_brighter: bool)
     })
 }
 
-/// Luma of a pixel (grey or RGB).
-#[inline]
-fn luma_at(frame: &Frame<'_>, u: usize, v: usize) -> u8 {
-    let row = frame.row(v);
-    match frame.pixels() {
-        Pixels::Grey(_) => row.get(u).copied().unwrap_or(0),
-        Pixels::Rgb(_) => match row.get(u * 3..u * 3 + 3) {
-            Some(&[r, g, b]) => luma(r, g, b),
-            _ => 0,
-        },
+/// Luma of pixel `(u, v)` of a frame (grey or RGB), 0 outside it. The pixel format and the
+/// slice are taken apart once per frame rather than once per pixel, as the profile reads
+/// thousands of pixels in no row order.
+#[derive(Clone, Copy)]
+struct LumaReader<'a> {
+    data: &'a [u8],
+    stride: usize,
+    width: usize,
+    height: usize,
+    colour: bool,
+}
+
+impl<'a> LumaReader<'a> {
+    fn new(frame: &Frame<'a>) -> Self {
+        let (data, colour) = match frame.pixels() {
+            Pixels::Grey(d) => (d, false),
+            Pixels::Rgb(d) => (d, true),
+        };
+        LumaReader {
+            data,
+            stride: frame.stride(),
+            width: frame.width(),
+            height: frame.height(),
+            colour,
+        }
+    }
+
+    #[inline]
+    fn at(&self, u: usize, v: usize) -> u8 {
+        if u >= self.width || v >= self.height {
+            return 0;
+        }
+        let start = v * self.stride;
+        if self.colour {
+            match self.data.get(start + 3 * u..start + 3 * u + 3) {
+                Some(&[r, g, b]) => luma(r, g, b),
+                _ => 0,
+            }
+        } else {
+            self.data.get(start + u).copied().unwrap_or(0)
+        }
     }
 }
 
@@ -294,6 +325,7 @@ pub(crate) fn place(
     let step = if major > 200 { 2 } else { 1 };
     let distorted = camera.k1 != 0.0 || camera.k2 != 0.0;
     let mut previous: Option<f32> = None;
+    let pixels = LumaReader::new(frame);
     for a in (0..major).step_by(step) {
         let af = a as f32;
         // Where the line crosses this column (row): pinhole guess, then Newton on the
@@ -389,13 +421,15 @@ pub(crate) fn place(
         profile.columns += 1;
         for c in first..=last {
             let d = (c as f32 - b) * k;
-            let bin = libm::floorf(d / BIN_PX + HALF_BINS as f32 + 0.5);
-            if !(0.0..BINS as f32).contains(&bin) {
+            // The bin is the floor of `f`; it lies in [0, BINS) exactly when `f` does, and
+            // there the floor is the truncation.
+            let f = d / BIN_PX + HALF_BINS as f32 + 0.5;
+            if !(0.0..BINS as f32).contains(&f) {
                 continue;
             }
-            let bin = bin as usize;
+            let bin = f as i32 as usize;
             let (u, v) = if along_columns { (a, c) } else { (c, a) };
-            let value = luma_at(frame, u, v);
+            let value = pixels.at(u, v);
             if let (Some(sum), Some(count), Some(clip)) = (
                 profile.sum.get_mut(bin),
                 profile.count.get_mut(bin),

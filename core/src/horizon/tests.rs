@@ -979,3 +979,55 @@ fn stripes_parallel_to_the_horizon_are_subtracted() {
         }
     }
 }
+
+/// The inline floor of the vote and profile bins is libm's, bit for bit: signed zeros, halves,
+/// values next to whole numbers, the 2^23 boundary, infinities and NaN.
+#[test]
+fn inline_floor_is_libms_bit_for_bit() {
+    let mut values = vec![
+        0.0f32,
+        -0.0,
+        0.5,
+        -0.5,
+        1.0,
+        -1.0,
+        0.999_999_94,
+        -0.999_999_94,
+        8_388_607.5,
+        -8_388_607.5,
+        8_388_608.0,
+        -8_388_608.0,
+        16_777_217.0,
+        f32::MIN_POSITIVE,
+        -f32::MIN_POSITIVE,
+        1e-45,
+        -1e-45,
+        f32::MAX,
+        f32::MIN,
+        f32::INFINITY,
+        f32::NEG_INFINITY,
+        f32::NAN,
+    ];
+    // Every f32 bit pattern in steps of an odd stride (covers all exponents and signs).
+    let mut bits = 0u32;
+    for _ in 0..2_000_000 {
+        values.push(f32::from_bits(bits));
+        bits = bits.wrapping_add(2_147_483_647 / 1_000_000 * 2 + 1);
+    }
+    // Whole numbers and their neighbours over the range the bins use.
+    for k in -2000..=2000 {
+        let w = k as f32 * 0.5;
+        values.extend([
+            w,
+            f32::from_bits(w.to_bits() + 1),
+            f32::from_bits(w.to_bits().wrapping_sub(1)),
+        ]);
+    }
+    for x in values {
+        let (ours, libm) = (hough::floor(x), libm::floorf(x));
+        assert!(
+            ours.to_bits() == libm.to_bits() || (ours.is_nan() && libm.is_nan()),
+            "floor({x:e}) = {ours:e}, libm {libm:e}"
+        );
+    }
+}

@@ -69,6 +69,43 @@ impl Bin {
     }
 }
 
+/// Adds pixels to the bins, holding the bin being filled in registers: along a row the
+/// pixels fall in one bin for many columns, and adding each through memory made every add
+/// wait for the one before. The same additions in the same order as adding in place.
+struct Filling<'a> {
+    bins: &'a mut [Bin; BINS],
+    open: Option<(usize, Bin)>,
+}
+
+impl Filling<'_> {
+    #[inline]
+    fn add(&mut self, index: usize, value: u8) {
+        let value = f32::from(value);
+        let bin = match &mut self.open {
+            Some((open, bin)) if *open == index => bin,
+            _ => {
+                self.close();
+                let Some(&start) = self.bins.get(index) else {
+                    return;
+                };
+                &mut self.open.insert((index, start)).1
+            }
+        };
+        bin.n += 1.0;
+        bin.sum += value;
+        bin.sum2 += value * value;
+    }
+
+    /// Writes the open bin back.
+    fn close(&mut self) {
+        if let Some((index, bin)) = self.open.take()
+            && let Some(slot) = self.bins.get_mut(index)
+        {
+            *slot = bin;
+        }
+    }
+}
+
 /// A step found above the chosen line.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct Step {
@@ -116,16 +153,16 @@ impl Profile {
         let inverse = sky_ward / rho_step;
         let low = -(BELOW as f32);
         let high = (reach + SIDE) as f32;
+        let mut filling = Filling {
+            bins: &mut profile.bins,
+            open: None,
+        };
         let mut add = |s: f32, value: u8| {
             if !(low..high).contains(&s) {
                 return;
             }
-            if let Some(bin) = profile.bins.get_mut((s - low) as usize) {
-                let value = f32::from(value);
-                bin.n += 1.0;
-                bin.sum += value;
-                bin.sum2 += value * value;
-            }
+            // `s − low` is not negative: through i32, the cheap conversion.
+            filling.add((s - low) as i32 as usize, value);
         };
         let rows = grey
             .chunks_exact(geo.width.max(1))
@@ -157,6 +194,7 @@ impl Profile {
                     at_a = at_b;
                 }
             }
+            filling.close();
             return profile;
         }
         // Without distortion the bin is linear in the pixel: one add per pixel, and only
@@ -185,9 +223,12 @@ impl Profile {
             };
             let start = columns.start;
             for (i, &value) in row.get(columns).unwrap_or(&[]).iter().enumerate() {
-                add(row_start + (start + i) as f32 * along_row, value);
+                // Through u32: the same value (a column index) without the unsigned 64-bit
+                // conversion's fix-ups.
+                add(row_start + (start + i) as u32 as f32 * along_row, value);
             }
         }
+        filling.close();
         profile
     }
 
