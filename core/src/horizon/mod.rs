@@ -769,7 +769,11 @@ impl HorizonDetector {
             .count();
         let clipped_share = clipped as f32 / samples.len().max(1) as f32;
         confidence *= (1.0 - CLIPPED_FRAME_WEIGHT * clipped_share).clamp(0.0, 1.0);
-        confidence *= (1.0 - CLIPPED_SKY_WEIGHT * placement.clipped_sky).clamp(0.0, 1.0);
+        // ... unless the clipped sky ends at a sharp step onto clearly unclipped, flat-ish
+        // ground: that edge is the ground's own top, so the horizon is in view.
+        if !placement.sharp_clip_end {
+            confidence *= (1.0 - CLIPPED_SKY_WEIGHT * placement.clipped_sky).clamp(0.0, 1.0);
+        }
         if placement.significance < profile::MIN_SIGNIFICANCE {
             confidence *= 0.5;
         }

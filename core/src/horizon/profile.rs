@@ -46,6 +46,9 @@ pub(crate) struct Placement {
     pub significance: f32,
     /// Share of the profile's pixels at or above clipping on the sky side near the edge.
     pub clipped_sky: f32,
+    /// The clipped sky ends at a sharp step onto clearly unclipped, flat-ish ground (see
+    /// [`sharp_clip_end`]): the edge is the ground's own top, not a ramp crossing the clip.
+    pub sharp_clip_end: bool,
     /// Pixels that went into the profiles.
     pub pixels: u32,
 }
@@ -242,6 +245,54 @@ fn find_edge(profile: &Profile, sky_px: f32, ground_px: f32, sky_brighter: bool)
         step: at(offset_px - 2.0) - at(offset_px + 2.0),
         significance: g0 / (noise + 0.05),
     })
+}
+
+/// Luma at or above which a profile bin counts as clipped (mean level).
+const CLIP_LEVEL: f32 = 245.0;
+/// The ground under a sharp clip end is at least this far below a pixel's clipping level
+/// (250, luma levels).
+const UNCLIPPED_MARGIN: f32 = 10.0;
+/// Share of the fall from the sky to the ground 4 px down that must happen within 1.5 px of
+/// the edge: a step, not a ramp.
+const SHARP_SHARE: f32 = 0.8;
+
+/// Whether the clipped sky above the edge at `offset_px` ends at a sharp step onto clearly
+/// unclipped ground: clipped 1 px above the edge, well below clipping 1.5 px below it, and
+/// nearly flat from there to 4 px below (the fall within 1.5 px is most of the fall to 4 px).
+/// A hazy ground ramping up into the clip level instead keeps falling below the crossing.
+/// Only bins that hold pixels are read (the gap filling would fake a flat ground).
+fn sharp_clip_end(profile: &Profile, offset_px: f32) -> bool {
+    let Some(m) = profile.means() else {
+        return false;
+    };
+    let at = |d: f32| -> Option<f32> {
+        let i = libm::floorf(d / BIN_PX + HALF_BINS as f32 + 0.5);
+        if !(0.0..BINS as f32).contains(&i) {
+            return None;
+        }
+        let i = i as usize;
+        match (m.get(i), profile.count.get(i)) {
+            (Some(&v), Some(&c)) if c > 0 => Some(v),
+            // A level line fills every other bin: the neighbour towards the ground.
+            _ => match (m.get(i + 1), profile.count.get(i + 1)) {
+                (Some(&v), Some(&c)) if c > 0 => Some(v),
+                _ => None,
+            },
+        }
+    };
+    let (Some(sky), Some(near), Some(far)) = (
+        at(offset_px - 1.0),
+        at(offset_px + 2.0),
+        at(offset_px + 5.0),
+    ) else {
+        return false;
+    };
+    let fall = sky - far;
+    sky >= CLIP_LEVEL
+        && near <= 250.0 - UNCLIPPED_MARGIN
+        && fall > 0.0
+        && sky - near >= SHARP_SHARE * fall
+        && libm::fabsf(near - far) <= (1.0 - SHARP_SHARE) * fall
 }
 
 /// Luma of pixel `(u, v)` of a frame (grey or RGB), 0 outside it. The pixel format and the
@@ -468,6 +519,7 @@ pub(crate) fn place(
     } else {
         0.0
     };
+    placement.sharp_clip_end = sharp_clip_end(&both, whole.offset_px);
     if whole.significance < MIN_SIGNIFICANCE || both.columns == 0 {
         return (line, placement);
     }

@@ -692,6 +692,49 @@ fn over_and_under_exposure() {
 }
 
 #[test]
+fn clipped_sky_over_a_sharp_ground_edge_keeps_its_confidence() {
+    // The sky brightens towards the horizon and clips in the last few pixels above it (the
+    // synth `exposure` frames). Over a sharp step onto clearly unclipped, flat-ish ground the
+    // edge is the ground's own top: right, and confident. Over a hazy ground that is itself
+    // clipped at the horizon and ramps down through the clip level ~3° below it, the clip's
+    // end is no horizon: under the gate (or no answer).
+    let camera = camera_320();
+    let sky = |d: f32| 262.0 - 40.0 * (1.0 - libm::expf(d / 0.05));
+    let (roll, pitch) = (5.0, 2.0);
+    let mut sharp = render_grey(&camera, roll * DEG, pitch * DEG, |_, _, d| {
+        if d <= 0.0 { sky(d) } else { 205.0 - 150.0 * d }
+    });
+    add_noise(&mut sharp, 2.0, 23);
+    let h = detect_once(camera, Pixels::Grey(&sharp)).expect("a horizon");
+    assert!(
+        assert_right_or_honest(Some(h), roll, pitch, "sharp clip end"),
+        "sharp clip end: not right"
+    );
+    assert!(
+        h.confidence >= gate(),
+        "sharp clip end: confidence {} under the gate",
+        h.confidence
+    );
+    let mut ramp = render_grey(&camera, roll * DEG, pitch * DEG, |_, _, d| {
+        if d <= 0.0 {
+            sky(d)
+        } else {
+            (300.0 - 1000.0 * d).max(80.0)
+        }
+    });
+    add_noise(&mut ramp, 2.0, 29);
+    if let Some(h) = detect_once(camera, Pixels::Grey(&ramp)) {
+        assert!(
+            h.confidence < gate(),
+            "ramp through the clip level: roll {:.2} pitch {:.2} with confidence {:.2}",
+            h.roll_rad / DEG,
+            h.pitch_rad / DEG,
+            h.confidence
+        );
+    }
+}
+
+#[test]
 fn no_horizon_in_fog_or_out_of_the_frame() {
     let camera = camera_320();
     // Fog: one grey with a faint gradient and noise.
