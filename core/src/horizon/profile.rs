@@ -260,8 +260,11 @@ const SHARP_SHARE: f32 = 0.8;
 /// unclipped ground: clipped 1 px above the edge, well below clipping 1.5 px below it, and
 /// nearly flat from there to 4 px below (the fall within 1.5 px is most of the fall to 4 px).
 /// A hazy ground ramping up into the clip level instead keeps falling below the crossing.
+/// The sky at the far end of the search (`sky_px` above the coarse line) must stay well above
+/// that ground, at least half the step up: a thin clipped stripe (synth `white-stripes`) has
+/// the same level on both sides and its lower edge is no horizon.
 /// Only bins that hold pixels are read (the gap filling would fake a flat ground).
-fn sharp_clip_end(profile: &Profile, offset_px: f32) -> bool {
+fn sharp_clip_end(profile: &Profile, offset_px: f32, sky_px: f32) -> bool {
     let Some(m) = profile.means() else {
         return false;
     };
@@ -287,8 +290,12 @@ fn sharp_clip_end(profile: &Profile, offset_px: f32) -> bool {
     ) else {
         return false;
     };
+    let Some(top) = at(-sky_px) else {
+        return false;
+    };
     let fall = sky - far;
-    sky >= CLIP_LEVEL
+    top >= near + 0.5 * (sky - near)
+        && sky >= CLIP_LEVEL
         && near <= 250.0 - UNCLIPPED_MARGIN
         && fall > 0.0
         && sky - near >= SHARP_SHARE * fall
@@ -519,7 +526,7 @@ pub(crate) fn place(
     } else {
         0.0
     };
-    placement.sharp_clip_end = sharp_clip_end(&both, whole.offset_px);
+    placement.sharp_clip_end = sharp_clip_end(&both, whole.offset_px, search_px);
     if whole.significance < MIN_SIGNIFICANCE || both.columns == 0 {
         return (line, placement);
     }
