@@ -248,23 +248,42 @@ struct Scored {
     line: Line,
     horizon: HorizonLine,
     explained: f32,
+    /// The line's evidence that its brighter side is the sky
+    /// ([`hough::Separation::bright_is_sky`]).
+    bright_is_sky: f32,
     coverage: f32,
     score: f32,
     continues_track: bool,
 }
 
 impl Scored {
-    /// `line` as the horizon (the sky on its brighter side or not), scored by how well it
-    /// separates the frame and how much of its length is drawn; not yet on the track.
-    fn new(line: Line, sky_brighter: bool, explained: f32, coverage: f32) -> Self {
+    /// `line` as the horizon `horizon`, scored by how well it separates the frame and how
+    /// much of its length is drawn; not yet on the track.
+    fn oriented(
+        line: Line,
+        horizon: HorizonLine,
+        separation: hough::Separation,
+        coverage: f32,
+    ) -> Self {
         Scored {
             line,
-            horizon: HorizonLine::of_line(line, sky_brighter),
-            explained,
+            horizon,
+            explained: separation.explained,
+            bright_is_sky: separation.bright_is_sky,
             coverage,
-            score: explained * coverage,
+            score: separation.explained * coverage,
             continues_track: false,
         }
+    }
+
+    /// [`Scored::oriented`] with the sky on the line's brighter side or not.
+    fn new(line: Line, sky_brighter: bool, separation: hough::Separation, coverage: f32) -> Self {
+        Self::oriented(
+            line,
+            HorizonLine::of_line(line, sky_brighter),
+            separation,
+            coverage,
+        )
     }
 }
 
@@ -526,16 +545,7 @@ impl HorizonDetector {
             }
             let coverage = (inliers as f32 / expected).min(1.0);
             let separation = hough::separation(samples, line, 2.0 * rho.step);
-            let horizon = self.orient(line, separation.bright_is_sky);
-            let continues_track = self.continues_track(&horizon);
-            *slot = Some(Scored {
-                line,
-                horizon,
-                explained: separation.explained,
-                coverage,
-                score: separation.explained * coverage,
-                continues_track,
-            });
+            *slot = Some(self.scored(line, separation, coverage));
         }
 
         // 6b: when no edge line splits the frame, the line that best splits it into two
@@ -550,17 +560,9 @@ impl HorizonDetector {
             if separation.explained >= MIN_EXPLAINED
                 && hough_best.is_none_or(|b| separation.explained > REGION_MARGIN * b.explained)
             {
-                let horizon = self.orient(line, separation.bright_is_sky);
                 scored = [None; MAX_CANDIDATES];
                 if let Some(slot) = scored.first_mut() {
-                    *slot = Some(Scored {
-                        line,
-                        horizon,
-                        explained: separation.explained,
-                        coverage: 1.0,
-                        score: separation.explained,
-                        continues_track: self.continues_track(&horizon),
-                    });
+                    *slot = Some(self.scored(line, separation, REGION_COVERAGE));
                 }
                 from_region = true;
             }
@@ -665,15 +667,7 @@ impl HorizonDetector {
                         && (striped || !same_line(*line, chosen.line, rho.step))
                 });
             if let Some((line, separation)) = found {
-                let horizon = self.orient(line, separation.bright_is_sky);
-                chosen = Scored {
-                    line,
-                    horizon,
-                    explained: separation.explained,
-                    coverage: 1.0,
-                    score: separation.explained,
-                    continues_track: self.continues_track(&horizon),
-                };
+                chosen = self.scored(line, separation, REGION_COVERAGE);
                 from_region = true;
                 destriped = true;
             } else {
@@ -747,8 +741,7 @@ impl HorizonDetector {
         // down at fields, a field's border splits the frame as well as a horizon does, but
         // the lighter field is no bluer and no smoother than the darker (the evidence sums to
         // about zero); looking up, a cloud's edge has sky on both sides.
-        let skyness = hough::separation(samples, chosen.line, 2.0 * rho.step).bright_is_sky;
-        confidence *= (libm::fabsf(skyness) / CLEAR_SKY_EVIDENCE).clamp(0.0, 1.0);
+        confidence *= (libm::fabsf(chosen.bright_is_sky) / CLEAR_SKY_EVIDENCE).clamp(0.0, 1.0);
         if jumped {
             confidence *= 0.7;
         }
@@ -832,6 +825,16 @@ impl HorizonDetector {
             sky_bright
         } else {
             sky_dark
+        }
+    }
+
+    /// `line` scored as a candidate: its sky side from the image and the track, and whether
+    /// it continues the track.
+    fn scored(&self, line: Line, separation: hough::Separation, coverage: f32) -> Scored {
+        let horizon = self.orient(line, separation.bright_is_sky);
+        Scored {
+            continues_track: self.continues_track(&horizon),
+            ..Scored::oriented(line, horizon, separation, coverage)
         }
     }
 
@@ -925,12 +928,7 @@ fn higher_edge(
     if !textured_ground_under_smooth_sky(c, chosen.line, line, sky_ward) {
         return None;
     }
-    Some(Scored::new(
-        line,
-        sky_brighter,
-        separation.explained,
-        coverage,
-    ))
+    Some(Scored::new(line, sky_brighter, separation, coverage))
 }
 
 /// Textured ground in the band between a ground edge (`edge`) and a candidate horizon above
@@ -981,12 +979,7 @@ fn higher_step(
     if !textured_ground_under_smooth_sky(c, chosen.line, line, sky_ward) {
         return None;
     }
-    Some(Scored::new(
-        line,
-        sky_brighter,
-        separation.explained,
-        chosen.coverage,
-    ))
+    Some(Scored::new(line, sky_brighter, separation, chosen.coverage))
 }
 
 /// Share of the variance above a ground edge that a step found there must explain to be taken
@@ -1040,6 +1033,9 @@ const REGION_TRIGGER: f32 = 0.3;
 const REGION_MARGIN: f32 = 1.5;
 /// Most confidence a line found by regions gets (its edges are not what drew it).
 const REGION_CONFIDENCE: f32 = 0.8;
+/// A region line is not drawn by edges: it counts as covered along its length, so that its
+/// score is how well it splits the frame.
+const REGION_COVERAGE: f32 = 1.0;
 
 /// A family of stripes is looked for only under a chosen line scoring less than this (its
 /// edges drawing under half its length, or its split weak): a clear horizon needs no second
