@@ -513,7 +513,7 @@ impl Renderer {
             blocks(pixels, w, h, rng);
         }
         if self.degradation == Degradation::LowLight {
-            Self::low_light(pixels, w, rng);
+            low_light(pixels, w, rng);
         }
         let stripe = if self.has(Degradation::WhiteStripes) {
             Some(255.0)
@@ -533,35 +533,6 @@ impl Renderer {
                     let jitter = 8.0 * rng.normal();
                     *p = [value + jitter; 3];
                 }
-            }
-        }
-    }
-
-    /// A dim scene read by a sensor at high gain. The 8-bit values are taken as sRGB, turned
-    /// into linear light, and a full-scale pixel collects `full_well` electrons (60–400: a tenth
-    /// of daylight or less). Each pixel adds its shot noise (√electrons), 2–5 electrons of read
-    /// noise and its row's offset (0.5–2.5 electrons, one draw a row: the row's reset and
-    /// amplifier), is quantised by a 10-bit converter over the full well, and is scaled back
-    /// to full brightness and gamma-encoded.
-    fn low_light(pixels: &mut [[f32; 3]], w: usize, rng: &mut Rng) {
-        let full_well = rng.range(60.0, 400.0);
-        let read_noise = rng.range(2.0, 5.0);
-        let row_noise = rng.range(0.5, 2.5);
-        let step = full_well / 1024.0;
-        let mut row_offset = 0.0;
-        for (i, p) in pixels.iter_mut().enumerate() {
-            if i % w == 0 {
-                row_offset = row_noise * rng.normal();
-            }
-            for c in p.iter_mut() {
-                let linear = (c.clamp(0.0, 255.0) / 255.0).powf(2.2);
-                let electrons = linear * full_well;
-                let read = electrons
-                    + electrons.sqrt() * rng.normal()
-                    + read_noise * rng.normal()
-                    + row_offset;
-                let digital = ((read / step).round() * step / full_well).max(0.0);
-                *c = 255.0 * digital.powf(1.0 / 2.2);
             }
         }
     }
@@ -620,6 +591,35 @@ impl Renderer {
                     *c = veiled + strength * warm * (bloom + smear + ghost);
                 }
             }
+        }
+    }
+}
+
+/// A dim scene read by a sensor at high gain. The 8-bit values are taken as sRGB, turned
+/// into linear light, and a full-scale pixel collects `full_well` electrons (60–400: a tenth
+/// of daylight or less). Each pixel adds its shot noise (√electrons), 2–5 electrons of read
+/// noise and its row's offset (0.5–2.5 electrons, one draw a row: the row's reset and
+/// amplifier), is quantised by a 10-bit converter over the full well, and is scaled back
+/// to full brightness and gamma-encoded.
+fn low_light(pixels: &mut [[f32; 3]], w: usize, rng: &mut Rng) {
+    let full_well = rng.range(60.0, 400.0);
+    let read_noise = rng.range(2.0, 5.0);
+    let row_noise = rng.range(0.5, 2.5);
+    let step = full_well / 1024.0;
+    let mut row_offset = 0.0;
+    for (i, p) in pixels.iter_mut().enumerate() {
+        if i % w == 0 {
+            row_offset = row_noise * rng.normal();
+        }
+        for c in p.iter_mut() {
+            let linear = (c.clamp(0.0, 255.0) / 255.0).powf(2.2);
+            let electrons = linear * full_well;
+            let read = electrons
+                + electrons.sqrt() * rng.normal()
+                + read_noise * rng.normal()
+                + row_offset;
+            let digital = ((read / step).round() * step / full_well).max(0.0);
+            *c = 255.0 * digital.powf(1.0 / 2.2);
         }
     }
 }
