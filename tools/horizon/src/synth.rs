@@ -62,10 +62,20 @@ pub enum Degradation {
     /// crossed by long straight roads, the others steeply up into the sky and its clouds.
     /// Scored only on false confidence.
     NoHorizon,
+    /// Analogue interference over a hazy horizon, in linear light (issue 17): the ground
+    /// fades into an airlight a little darker than the sky's glow at the horizon (extinction
+    /// and airlight blended as radiance), so the horizon is a small step over a long ramp; the
+    /// camera adds a short motion blur, vignetting, shot and read noise in electrons, clipping
+    /// and the sRGB curve; the interference is a sinusoid at any angle to the horizon (a third
+    /// of the frames nearly parallel to it), 3 px to half the frame's height in period and
+    /// about as strong as the step, added to the analogue signal before or after the gamma,
+    /// and in some frames a broad hum bar, brighter or darker, rolling down the frame.
+    /// (After `NoHorizon`: a set's seed follows its place in this list.)
+    HazyInterference,
 }
 
 impl Degradation {
-    pub const SETS: [Degradation; 17] = [
+    pub const SETS: [Degradation; 18] = [
         Degradation::Clean,
         Degradation::SensorNoise,
         Degradation::TransmissionNoise,
@@ -82,6 +92,7 @@ impl Degradation {
         Degradation::ParallelInterference,
         Degradation::GroundEdge,
         Degradation::LowLight,
+        Degradation::HazyInterference,
         Degradation::NoHorizon,
     ];
 
@@ -104,6 +115,7 @@ impl Degradation {
             Degradation::ParallelInterference => "parallel-interference",
             Degradation::GroundEdge => "ground-edge",
             Degradation::LowLight => "low-light",
+            Degradation::HazyInterference => "hazy-interference",
             Degradation::NoHorizon => "no-horizon",
         }
     }
@@ -256,6 +268,8 @@ pub struct Renderer {
     /// Normalised undistorted rays of 2×2 points inside each pixel (a sensor integrates
     /// over the pixel's area; point sampling would draw the horizon as a hard staircase).
     rays: Vec<[(f32, f32); 4]>,
+    /// Off only in tests: the same frame without its interference.
+    with_interference: bool,
 }
 
 /// Altitude above the fields (m) and of the cloud base above the airplane (m).
@@ -284,6 +298,7 @@ impl Renderer {
             height,
             seed: seed.wrapping_mul(31).wrapping_add(degradation.index()),
             rays,
+            with_interference: true,
         }
     }
 
@@ -333,6 +348,7 @@ impl Renderer {
             Haze {
                 distance_m: 500.0,
                 colour: [182.0, 195.0, 212.0],
+                linear: false,
             }
         } else if self.degradation == Degradation::LowLight {
             // Dusk is hazy: an airlight 6–16 levels under of the sky at the horizon (the
@@ -343,6 +359,18 @@ impl Renderer {
             Haze {
                 distance_m: 700.0,
                 colour: sky.map(|c| c - below),
+                linear: false,
+            }
+        } else if self.degradation == Degradation::HazyInterference {
+            // Thick haze: the steepest part of the ramp lies `altitude / 2·distance` below
+            // the horizon (1.7–7°); the airlight is 70–92 % of the sky's radiance at the
+            // horizon, a step of about 5–25 levels.
+            let sky = sky_colour(0.0);
+            let airlight = frame_rng.range(0.70, 0.92);
+            Haze {
+                distance_m: frame_rng.range(500.0, 2000.0),
+                colour: sky.map(|c| srgb_encode(airlight * srgb_decode(c))),
+                linear: true,
             }
         } else {
             Haze::NORMAL
@@ -512,6 +540,9 @@ impl Renderer {
         if self.degradation == Degradation::Blocks {
             blocks(pixels, w, h, rng);
         }
+        if self.degradation == Degradation::HazyInterference {
+            analogue_camera(pixels, w, h, index, roll, rng, self.with_interference);
+        }
         if self.degradation == Degradation::LowLight {
             low_light(pixels, w, rng);
         }
@@ -663,13 +694,38 @@ fn sky_colour(elevation: f32) -> [f32; 3] {
 struct Haze {
     distance_m: f32,
     colour: [f32; 3],
+    /// Extinction and airlight added as radiance (linear light), as light does, rather than
+    /// blended in 8-bit values.
+    linear: bool,
 }
 
 impl Haze {
     const NORMAL: Haze = Haze {
         distance_m: 2500.0,
         colour: [150.0, 160.0, 170.0],
+        linear: false,
     };
+}
+
+/// An 8-bit sRGB value (0–255, not clamped) to linear light (0–1).
+fn srgb_decode(value: f32) -> f32 {
+    let v = value.max(0.0) / 255.0;
+    if v <= 0.04045 {
+        v / 12.92
+    } else {
+        ((v + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// Linear light (0–1) to an 8-bit sRGB value (0–255, not clamped).
+fn srgb_encode(linear: f32) -> f32 {
+    let l = linear.max(0.0);
+    255.0
+        * if l <= 0.003_130_8 {
+            12.92 * l
+        } else {
+            1.055 * l.powf(1.0 / 2.4) - 0.055
+        }
 }
 
 /// Fields (patches with their own colour), fine texture, optionally roads and strong field
@@ -722,6 +778,11 @@ fn ground_colour(
     }
     let texture = (fbm(world ^ 0x7E7, north / 6.0, east / 6.0, 3) - 0.5) * 40.0;
     let k = 1.0 - (-distance / haze.distance_m).exp();
+    if haze.linear {
+        return std::array::from_fn(|i| {
+            srgb_encode(srgb_decode(c[i] + texture) * (1.0 - k) + srgb_decode(haze.colour[i]) * k)
+        });
+    }
     std::array::from_fn(|i| (c[i] + texture) * (1.0 - k) + haze.colour[i] * k)
 }
 
@@ -780,6 +841,122 @@ fn interference(
         };
         for c in p.iter_mut() {
             *c += wave + hum;
+        }
+    }
+}
+
+/// The `hazy-interference` camera and link, on a frame of 8-bit sRGB values. In linear light:
+/// a motion blur of 0–3 px (at 320 px) along a random direction, vignetting (the corners
+/// 10–35 % darker), an exposure putting the horizon's sky at 55–95 % of full scale, shot
+/// noise and 4–12 electrons of read noise over a full well of 2000–12000, clipping, then the
+/// sRGB curve. The interference is drawn every frame (so that the rest of the frame is the
+/// same with it or without it, see the tests) and added to the analogue signal in half of
+/// the frames before the gamma (as radiance, where it is clipped with the scene), in the
+/// others after it: a sinusoid whose crests run at any angle to the horizon's image direction
+/// (a third of the frames within ±8° of it), period 3 px to half the frame's height
+/// (log-uniform), amplitude 3–22 levels; and in three frames of five a hum bar a fifth to half
+/// of the frame high, 4–25 levels brighter or darker at its middle, rolling down.
+fn analogue_camera(
+    pixels: &mut [[f32; 3]],
+    w: usize,
+    h: usize,
+    index: usize,
+    roll: f32,
+    rng: &mut Rng,
+    with_interference: bool,
+) {
+    let scale = w as f32 / 320.0;
+    // Motion blur: the mean of samples along a short segment (rounded to whole pixels).
+    let blur_length = rng.range(0.0, 3.0) * scale;
+    let blur_angle = rng.range(0.0, std::f32::consts::PI);
+    let taps = (blur_length.ceil() as usize).max(1) + 1;
+    let mut linear: Vec<[f32; 3]> = pixels
+        .iter()
+        .map(|p| p.map(srgb_decode))
+        .collect::<Vec<_>>();
+    if blur_length >= 0.5 {
+        let source = linear.clone();
+        let (du, dv) = (blur_angle.cos(), blur_angle.sin());
+        for (i, out) in linear.iter_mut().enumerate() {
+            let (u, v) = ((i % w) as f32, (i / w) as f32);
+            let mut sum = [0.0f32; 3];
+            for t in 0..taps {
+                let along = blur_length * (t as f32 / (taps - 1) as f32 - 0.5);
+                let su = (u + along * du).round().clamp(0.0, w as f32 - 1.0) as usize;
+                let sv = (v + along * dv).round().clamp(0.0, h as f32 - 1.0) as usize;
+                for (s, c) in sum.iter_mut().zip(source[sv * w + su]) {
+                    *s += c / taps as f32;
+                }
+            }
+            *out = sum;
+        }
+    }
+    let vignetting = rng.range(0.10, 0.35);
+    let exposure = rng.range(0.55, 0.95) / srgb_decode(sky_colour(0.0)[2]);
+    let full_well = rng.range(2000.0, 12000.0);
+    let read_noise = rng.range(4.0, 12.0);
+    // The interference, in 8-bit levels at the level of the horizon's sky.
+    let near_parallel = rng.uniform() < 1.0 / 3.0;
+    let relative = if near_parallel {
+        rng.range(-8.0, 8.0)
+    } else {
+        rng.range(-90.0, 90.0)
+    };
+    let angle = -roll + relative.to_radians();
+    let period = (rng.range((3.0 * scale).ln(), (0.5 * h as f32).ln())).exp();
+    let amplitude = rng.range(3.0, 22.0);
+    let phase = rng.range(0.0, std::f32::consts::TAU);
+    let before_gamma = rng.uniform() < 0.5;
+    let hum = if rng.uniform() < 0.6 {
+        let sign = if rng.uniform() < 0.5 { -1.0 } else { 1.0 };
+        let strength = sign * rng.range(4.0, 25.0);
+        let half = rng.range(0.1, 0.25) * h as f32;
+        let centre = ((index as f32 * 0.09 + rng.range(0.0, 1.4)) % 1.4 - 0.2) * h as f32;
+        Some((strength, half, centre))
+    } else {
+        None
+    };
+    let (ku, kv) = (
+        -angle.sin() * std::f32::consts::TAU / period,
+        angle.cos() * std::f32::consts::TAU / period,
+    );
+    let signal = |i: usize| -> f32 {
+        if !with_interference {
+            return 0.0;
+        }
+        let (u, v) = ((i % w) as f32, (i / w) as f32);
+        let bar = hum.map_or(0.0, |(strength, half, centre)| {
+            let d = (v - centre) / half;
+            if d.abs() < 1.0 {
+                strength * 0.5 * (1.0 + (d * std::f32::consts::PI).cos())
+            } else {
+                0.0
+            }
+        });
+        amplitude * (ku * u + kv * v + phase).sin() + bar
+    };
+    // Levels to radiance at the horizon sky's brightness (the sRGB curve's slope there).
+    let sky_linear = 0.75;
+    let levels_per_linear = srgb_encode(sky_linear + 0.01) - srgb_encode(sky_linear - 0.01);
+    let linear_per_level = 0.02 / levels_per_linear;
+    let (cx, cy) = (0.5 * w as f32, 0.5 * h as f32);
+    let corner2 = cx * cx + cy * cy;
+    for (i, (p, l)) in pixels.iter_mut().zip(&linear).enumerate() {
+        let (u, v) = ((i % w) as f32 - cx, (i / w) as f32 - cy);
+        let gain = exposure * (1.0 - vignetting * (u * u + v * v) / corner2);
+        let added = signal(i);
+        for (c, &radiance) in p.iter_mut().zip(l) {
+            let mut x = radiance * gain;
+            if before_gamma {
+                x += added * linear_per_level;
+            }
+            let electrons = x.max(0.0) * full_well;
+            let read = electrons + electrons.sqrt() * rng.normal() + read_noise * rng.normal();
+            let mut out = srgb_encode((read / full_well).clamp(0.0, 1.0));
+            if !before_gamma {
+                out += added;
+            }
+            *c = out;
         }
     }
 }
@@ -850,6 +1027,76 @@ fn blocks(pixels: &mut [[f32; 3]], w: usize, h: usize, rng: &mut Rng) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Mean luma of the pixels whose distance from the true horizon (px, ground side
+    /// positive) lies in `[from, to)`.
+    fn band_luma(image: &Image, camera: &Camera, truth: &Truth, from: f32, to: f32) -> f32 {
+        let (roll, pitch) = (truth.roll_deg.to_radians(), truth.pitch_deg.to_radians());
+        let (s, c, o) = (roll.sin(), roll.cos(), pitch.tan());
+        let (mut sum, mut n) = (0.0f64, 0u32);
+        for v in 0..image.height {
+            for u in 0..image.width {
+                let Some((x, y)) = camera.undistort_pixel(u as f32, v as f32) else {
+                    continue;
+                };
+                let d = (s * x + c * y - o) * camera.fy;
+                if (from..to).contains(&d) {
+                    let p = &image.data[(v * image.width + u) * 3..][..3];
+                    sum +=
+                        0.299 * f64::from(p[0]) + 0.587 * f64::from(p[1]) + 0.114 * f64::from(p[2]);
+                    n += 1;
+                }
+            }
+        }
+        assert!(n > 100, "band {from}..{to}: {n} pixels");
+        (sum / f64::from(n)) as f32
+    }
+
+    /// The hazy horizon is a small step over a long ramp under a sky glowing towards it, and
+    /// the interference is really there: the same frame rendered without it (the same noise)
+    /// differs by a pattern of several levels.
+    #[test]
+    fn hazy_interference_frames_hold_a_small_step_over_a_ramp_and_stripes() {
+        let mut renderer = Renderer::new(Degradation::HazyInterference, 320, 240, 3);
+        for index in 0..6 {
+            renderer.with_interference = false;
+            let (scene, truth) = renderer.render(index);
+            renderer.with_interference = true;
+            let (striped, _) = renderer.render(index);
+            let camera = renderer.camera;
+            let band = |from, to| band_luma(&scene, &camera, &truth, from, to);
+            let (high_sky, sky, ground, far_ramp) = (
+                band(-30.0, -20.0),
+                band(-3.0, -1.0),
+                band(1.0, 3.0),
+                band(25.0, 35.0),
+            );
+            let step = sky - ground;
+            assert!((2.0..40.0).contains(&step), "frame {index}: step {step}");
+            assert!(
+                sky - high_sky > 3.0,
+                "frame {index}: no glow, {high_sky} → {sky}"
+            );
+            assert!(
+                ground - far_ramp > 5.0,
+                "frame {index}: no ramp, {ground} → {far_ramp}"
+            );
+            let differences: Vec<f32> = scene
+                .data
+                .iter()
+                .zip(&striped.data)
+                .map(|(&a, &b)| f32::from(b) - f32::from(a))
+                .collect();
+            let mean = differences.iter().sum::<f32>() / differences.len() as f32;
+            let spread = (differences.iter().map(|d| (d - mean).powi(2)).sum::<f32>()
+                / differences.len() as f32)
+                .sqrt();
+            assert!(
+                spread > 1.5,
+                "frame {index}: interference of {spread} levels"
+            );
+        }
+    }
 
     /// The honesty set holds no horizon: every frame is pitched out of it, so the bench
     /// scores it on false confidence only (a frame marked visible would be scored on angles).
