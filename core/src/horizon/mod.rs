@@ -677,17 +677,43 @@ impl HorizonDetector {
             }
         }
         let samples = ws.samples.get(..sample_count).unwrap_or(&[]);
-        let sky_brighter = if destriped {
+        let mut sky_brighter = if destriped {
             libm::fabsf(wrap_angle(
                 chosen.horizon.camera_roll_rad - (chosen.line.angle + PI),
             )) < 0.5 * PI
         } else {
             sky_brighter
         };
-        // A region's split may lie inside the transition (mid-ramp under haze) rather than at
-        // its top, where the horizon is; a clear step above it in the same transition makes
-        // the answer a guess between the two. Measured on `synth`, moving the line there
-        // read more crests and sky gradients than ramps: it stays, at a lower confidence.
+        // A region's split lies anywhere on the flanks of a hazy horizon's ridge (the sky
+        // glowing towards it, the ground darkening away from it): the horizon is the step at
+        // its top (see `region::top_step`). Where the line's two halves disagree on that
+        // step, the line keeps a quarter of its confidence.
+        let mut top_disagrees = false;
+        if from_region
+            && let Some(top) = region::top_step(
+                ws.grey,
+                geo,
+                &camera,
+                chosen.line,
+                rho.step,
+                if sky_brighter { 1.0 } else { -1.0 },
+            )
+        {
+            let line = top.line;
+            let separation = hough::separation(samples, line, 2.0 * rho.step);
+            if separation.explained >= MIN_EXPLAINED {
+                top_disagrees = !top.halves_agree;
+                chosen = self.scored(line, separation, REGION_COVERAGE);
+                sky_brighter = libm::fabsf(wrap_angle(
+                    chosen.horizon.camera_roll_rad - (chosen.line.angle + PI),
+                )) < 0.5 * PI;
+            }
+        }
+        // A destriped line may still lie inside the transition rather than at its top (the
+        // top step found nothing clearer); a clear step above it in the same transition
+        // makes the answer a guess between the two. Measured on `synth`, moving the line to
+        // that walk's step read more crests and sky gradients than ramps: it stays, at a
+        // lower confidence.
         let mut ambiguous = false;
         if destriped {
             profile = upper::Profile::measure(
@@ -734,7 +760,7 @@ impl HorizonDetector {
         if edge_stats.dropped > 0 {
             confidence *= 0.8;
         }
-        if profile.striped() || ambiguous {
+        if profile.striped() || ambiguous || top_disagrees {
             confidence *= STRIPED_CONFIDENCE;
         }
         // Which side is the sky must be clear: brighter, bluer and smoother together. Looking

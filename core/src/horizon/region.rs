@@ -10,7 +10,8 @@
 //! for each direction the samples are binned by their distance along the normal, and prefix
 //! sums give the between-class variance of every split in one pass.
 
-use super::edges::Sample;
+use super::camera::Camera;
+use super::edges::{Sample, Working};
 use super::hough::{Line, SATURATED};
 use core::f32::consts::PI;
 
@@ -177,4 +178,220 @@ fn search_with(samples: &[Sample], extent: f32, thin: usize) -> Option<Line> {
             rho: -d,
         }
     })
+}
+
+/// Working pixels either side of a region line searched for the horizon's step.
+const TOP_REACH: usize = 20;
+const TOP_BINS: usize = 2 * TOP_REACH + 1;
+/// Directions tried: this many half-degree steps either side of the region line's.
+const TOP_TURNS: i32 = 6;
+/// Bins the step is measured across (the lens, the binning and a motion blur spread it).
+const TOP_SPAN: usize = 2;
+/// The step must start within this share of the profile's range of its highest bin ...
+const TOP_SHARE: f32 = 0.25;
+/// ... be at least this many levels, and each of its two sides hold this many pixels.
+const TOP_MIN_STEP: f32 = 2.0;
+const TOP_MIN_PIXELS: f32 = 8.0;
+/// The two halves of the line must find their steps within this many bins of each other
+/// (their own bins, half as full: one bin is the noise of the place).
+const TOP_HALVES_AGREE: usize = 1;
+
+/// The horizon's step found near a region line.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct TopStep {
+    /// Through the step, its normal towards the sky (the brighter side of the step).
+    pub line: Line,
+    /// The two halves of the line see the step at the same place: the direction is the
+    /// step's, not a compromise with something crossing it.
+    pub halves_agree: bool,
+}
+
+/// Profile bins, `(pixels, sum of luma)`: over the whole line and over each half of it (on
+/// either side of the centre's foot on the line).
+type Bins = [(f32, f32); TOP_BINS];
+
+/// The mean luma of the working image across the line at `angle` and `rho` (bins of one rho
+/// step, sky-ward positive, [`TOP_REACH`] either side), whole and by halves.
+fn top_profile(
+    grey: &[u8],
+    geo: Working,
+    camera: &Camera,
+    (angle, rho): (f32, f32),
+    rho_step: f32,
+    sky_ward: f32,
+) -> [Bins; 2] {
+    let scale = geo.scale as f32;
+    let (nx, ny) = (libm::sinf(angle), libm::cosf(angle));
+    let mut halves = [[(0.0f32, 0.0f32); TOP_BINS]; 2];
+    // Bin of a working pixel: its sky-ward distance in rho steps, offset by the reach and
+    // rounded; linear along a row, as is the place along the line.
+    let inverse = sky_ward / rho_step;
+    let along_row = nx * scale / camera.fx * inverse;
+    let along_line_per_column = ny * scale / camera.fx;
+    for (wy, row) in grey
+        .chunks_exact(geo.width.max(1))
+        .take(geo.height)
+        .enumerate()
+    {
+        let (u0, v) = geo.to_frame(0.0, wy as f32);
+        let (x0, y) = ((u0 - camera.cx) / camera.fx, (v - camera.cy) / camera.fy);
+        let row_start = (x0 * nx + y * ny - rho) * inverse + TOP_REACH as f32 + 0.5;
+        let line_start = x0 * ny - y * nx;
+        let columns = if libm::fabsf(along_row) < 1e-6 {
+            if (0.0..TOP_BINS as f32).contains(&row_start) {
+                0..row.len()
+            } else {
+                0..0
+            }
+        } else {
+            let (a, b) = (
+                -row_start / along_row,
+                (TOP_BINS as f32 - row_start) / along_row,
+            );
+            let width = row.len() as f32;
+            ((a.min(b) - 1.0).clamp(0.0, width) as usize)
+                ..((a.max(b) + 1.0).clamp(0.0, width) as usize)
+        };
+        let first = columns.start;
+        for (i, &value) in row.get(columns).unwrap_or(&[]).iter().enumerate() {
+            let column = (first + i) as u32 as f32;
+            let f = row_start + column * along_row;
+            let half = usize::from(line_start + column * along_line_per_column >= 0.0);
+            if f >= 0.0
+                && let Some(bin) = halves
+                    .get_mut(half)
+                    .and_then(|h| h.get_mut(f as i32 as usize))
+            {
+                bin.0 += 1.0;
+                bin.1 += f32::from(value);
+            }
+        }
+    }
+    halves
+}
+
+/// The steepest fall towards the ground (bin index falling) among the bins near the
+/// profile's highest, searched in `range`: its size and the index of the bin between its
+/// two sides.
+fn steepest_top_fall(bins: &Bins, range: core::ops::Range<usize>) -> Option<(f32, usize)> {
+    let mean = |i: usize| {
+        bins.get(i)
+            .filter(|b| b.0 >= TOP_MIN_PIXELS)
+            .map(|b| b.1 / b.0)
+    };
+    let (mut high, mut low) = (f32::MIN, f32::MAX);
+    for i in 0..TOP_BINS {
+        if let Some(m) = mean(i) {
+            high = high.max(m);
+            low = low.min(m);
+        }
+    }
+    let near_top = high - TOP_SHARE * (high - low);
+    let mut best: Option<(f32, usize)> = None;
+    for i in range.start.max(TOP_SPAN)..range.end.min(TOP_BINS) {
+        let (Some(sky), Some(ground)) = (mean(i), mean(i - TOP_SPAN)) else {
+            continue;
+        };
+        let fall = sky - ground;
+        if sky >= near_top && fall >= TOP_MIN_STEP && best.is_none_or(|(f, _)| fall > f) {
+            best = Some((fall, i - TOP_SPAN / 2));
+        }
+    }
+    best
+}
+
+/// A direction tried by [`top_step`]: its steepest top fall, where, and its profiles.
+struct Candidate {
+    fall: f32,
+    /// Half degrees from the region line's direction.
+    turn: i32,
+    /// Angle and rho of the line turned.
+    direction: (f32, f32),
+    at: usize,
+    halves: [Bins; 2],
+}
+
+/// The horizon's step near a region line: the top of the transition, where the sky's glow
+/// ends and the ground begins.
+///
+/// A region split is the line across which the two sides differ most. Under a thick haze the
+/// frame is not two regions but a ridge: the sky brightens towards the horizon (its glow),
+/// the ground darkens away from it (extinction and airlight: a small step, then a long ramp),
+/// so the split can fall on either flank of the ridge, degrees from its top (measured on
+/// `synth` `hazy-interference`: 2–4° above or below it). The horizon is the step at the top:
+/// across each direction within ±3° of the split's (whole degrees, then the half degrees
+/// either side of the best), the mean luma of the working image along the line
+/// (interference crossing the line averages out) in bins of one working pixel, and the
+/// steepest fall towards the ground among the bins near the profile's highest; the direction
+/// whose fall is steepest wins (a wrong direction smears the step over bins). Where the two
+/// halves of the line see that step more than a bin apart, the direction is a compromise
+/// with something crossing it (residual stripes), and the answer says so.
+/// `sky_ward` (±1) says on which side of `line`'s normal the sky lies. The working image is
+/// taken as undistorted (as in `stripes`), true near the centre on a distorted camera.
+pub(crate) fn top_step(
+    grey: &[u8],
+    geo: Working,
+    camera: &Camera,
+    line: Line,
+    rho_step: f32,
+    sky_ward: f32,
+) -> Option<TopStep> {
+    if !(rho_step.is_finite() && rho_step > 0.0) {
+        return None;
+    }
+    let mut best: Option<Candidate> = None;
+    let try_turn = |turn: i32, best: &mut Option<Candidate>| {
+        let delta = turn as f32 * FINE_STEP;
+        // Turned about the foot of the centre's perpendicular on the line.
+        let direction = (line.angle + delta, line.rho * libm::cosf(delta));
+        let halves = top_profile(grey, geo, camera, direction, rho_step, sky_ward);
+        let mut whole = halves[0];
+        for (w, h) in whole.iter_mut().zip(halves[1].iter()) {
+            *w = (w.0 + h.0, w.1 + h.1);
+        }
+        if let Some((fall, at)) = steepest_top_fall(&whole, 0..TOP_BINS)
+            && best.as_ref().is_none_or(|b| fall > b.fall)
+        {
+            *best = Some(Candidate {
+                fall,
+                turn,
+                direction,
+                at,
+                halves,
+            });
+        }
+    };
+    // Whole degrees first, then the half degrees either side of the best.
+    for turn in (-TOP_TURNS..=TOP_TURNS).step_by(2) {
+        try_turn(turn, &mut best);
+    }
+    if let Some(coarse) = best.as_ref().map(|b| b.turn) {
+        for turn in [coarse - 1, coarse + 1] {
+            try_turn(turn, &mut best);
+        }
+    }
+    let Candidate {
+        direction: (angle, rho),
+        at,
+        halves,
+        ..
+    } = best?;
+    let near = at.saturating_sub(TOP_HALVES_AGREE + 2)..at + TOP_HALVES_AGREE + 3;
+    let [a, b] = halves.map(|h| steepest_top_fall(&h, near.clone()).map(|(_, i)| i));
+    let halves_agree = matches!((a, b), (Some(a), Some(b)) if a.abs_diff(b) <= TOP_HALVES_AGREE);
+    let s = at as f32 - TOP_REACH as f32;
+    let found = Line {
+        angle,
+        rho: rho + s * rho_step / sky_ward,
+    };
+    // Its normal towards the sky, the brighter side of the step.
+    let line = if sky_ward > 0.0 {
+        found
+    } else {
+        Line {
+            angle: found.angle + PI,
+            rho: -found.rho,
+        }
+    };
+    Some(TopStep { line, halves_agree })
 }
