@@ -709,6 +709,33 @@ impl HorizonDetector {
                 )) < 0.5 * PI;
             }
         }
+        // An edge line can lie on the ground's flank of the same ridge: the ramp under a
+        // thick haze is steeper at the working resolution than the small step above it
+        // (`synth` `low-light` at 320 px was read 8° low). When the transition walk above
+        // the line finds a clear step more than two working pixels up, the top step is
+        // looked for, and taken only above the line, with the two halves agreeing on it and
+        // the profile falling all the way from it down to the line (one transition: a cloud's
+        // lower edge or a bar above a real horizon has darker sky under it).
+        if !from_region
+            && !climbed
+            && sky_brighter
+            && profile.top_of_transition().is_some_and(|top| {
+                libm::fabsf(top.rho - chosen.line.rho) > TOP_AMBIGUITY * rho.step
+            })
+            && let Some(top) = region::top_step(ws.grey, geo, &camera, chosen.line, rho.step, 1.0)
+            && top.halves_agree
+            && top.one_transition
+            && top.sky_ward_px > TOP_AMBIGUITY
+        {
+            let separation = hough::separation(samples, top.line, 2.0 * rho.step);
+            if separation.explained >= MIN_EXPLAINED {
+                let upper = Scored::new(top.line, true, separation, chosen.coverage);
+                chosen = Scored {
+                    continues_track: self.continues_track(&upper.horizon),
+                    ..upper
+                };
+            }
+        }
         // A destriped line may still lie inside the transition rather than at its top (the
         // top step found nothing clearer); a clear step above it in the same transition
         // makes the answer a guess between the two. Measured on `synth`, moving the line to

@@ -204,6 +204,11 @@ pub(crate) struct TopStep {
     /// The two halves of the line see the step at the same place: the direction is the
     /// step's, not a compromise with something crossing it.
     pub halves_agree: bool,
+    /// Working pixels from the line given to the step, towards the sky.
+    pub sky_ward_px: f32,
+    /// Between the step and the line given the profile only falls towards the ground (one
+    /// transition: the step and the ramp below it, nothing brighter in between).
+    pub one_transition: bool,
 }
 
 /// Profile bins, `(pixels, sum of luma)`: over the whole line and over each half of it (on
@@ -379,6 +384,18 @@ pub(crate) fn top_step(
     let near = at.saturating_sub(TOP_HALVES_AGREE + 2)..at + TOP_HALVES_AGREE + 3;
     let [a, b] = halves.map(|h| steepest_top_fall(&h, near.clone()).map(|(_, i)| i));
     let halves_agree = matches!((a, b), (Some(a), Some(b)) if a.abs_diff(b) <= TOP_HALVES_AGREE);
+    let whole: Bins = core::array::from_fn(|i| {
+        let (p, q) = (halves[0][i], halves[1][i]);
+        (p.0 + q.0, p.1 + q.1)
+    });
+    let mean = |i: usize| {
+        whole
+            .get(i)
+            .filter(|b| b.0 >= TOP_MIN_PIXELS)
+            .map(|b| b.1 / b.0)
+    };
+    let one_transition = (TOP_REACH..at.saturating_sub(1))
+        .all(|j| matches!((mean(j), mean(j + 1)), (Some(g), Some(s)) if g - s <= TOP_MIN_STEP));
     let s = at as f32 - TOP_REACH as f32;
     let found = Line {
         angle,
@@ -393,5 +410,10 @@ pub(crate) fn top_step(
             rho: -found.rho,
         }
     };
-    Some(TopStep { line, halves_agree })
+    Some(TopStep {
+        line,
+        halves_agree,
+        sky_ward_px: s,
+        one_transition,
+    })
 }
