@@ -689,6 +689,9 @@ impl HorizonDetector {
         // its top (see `region::top_step`). Where the line's two halves disagree on that
         // step, the line keeps a quarter of its confidence.
         let mut top_disagrees = false;
+        // A region line moved to the top step (an edge line moved there keeps the terms of
+        // the edges that drew it).
+        let mut moved_to_top = false;
         if from_region
             && let Some(top) = region::top_step(
                 ws.grey,
@@ -703,6 +706,7 @@ impl HorizonDetector {
             let separation = hough::separation(samples, line, 2.0 * rho.step);
             if separation.explained >= MIN_EXPLAINED {
                 top_disagrees = !top.halves_agree;
+                moved_to_top = true;
                 chosen = self.scored(line, separation, REGION_COVERAGE);
                 sky_brighter = libm::fabsf(wrap_angle(
                     chosen.horizon.camera_roll_rad - (chosen.line.angle + PI),
@@ -825,9 +829,17 @@ impl HorizonDetector {
         }
         if from_region {
             // Without a clear edge where it was placed at full resolution, a region line's
-            // place is only as good as the sample grid (a few pixels).
+            // place is only as good as the sample grid (a few pixels). A region line moved to
+            // a ridge's top step needs a clearer one: a residual stripe or a hum bar's flank
+            // also makes a step near a hazy ridge's top (`synth` `hazy-interference`: the
+            // wrong ones placed at 11–15 times the noise, most right ones at 15–100).
+            let span = if moved_to_top {
+                TOP_STEP_SIGNIFICANCE_SPAN
+            } else {
+                3.0
+            };
             confidence *= ((placement.significance - profile::MIN_SIGNIFICANCE)
-                / (3.0 * profile::MIN_SIGNIFICANCE))
+                / (span * profile::MIN_SIGNIFICANCE))
                 .clamp(0.0, 1.0);
         }
         let chosen = Scored {
@@ -1079,6 +1091,10 @@ const STRIPED_CONFIDENCE: f32 = 0.25;
 /// A destriped line with a clear step more than this many working pixels above it, in the same
 /// transition, is ambiguous (see `upper::Profile::top_of_transition`).
 const TOP_AMBIGUITY: f32 = 2.0;
+/// A region line moved to a ridge's top step keeps its full confidence only when its
+/// full-resolution edge is this many times [`profile::MIN_SIGNIFICANCE`] above it (other region
+/// lines: 3).
+const TOP_STEP_SIGNIFICANCE_SPAN: f32 = 6.0;
 
 /// The region search runs when no edge line explains this share of the frame's variance ...
 const REGION_TRIGGER: f32 = 0.3;
