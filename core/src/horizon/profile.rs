@@ -232,8 +232,9 @@ fn find_edge(
     // sky that may be smaller. The coarse line then lies on the ramp, and at 320 px several
     // degrees down it: further than the search around it reaches. Walking from the gradient
     // maximum towards the sky while the profile keeps rising (one transition: the level, sky
-    // side up, never falls back by more than its noise), as far as `transition_px`, the
-    // sky-most local maximum that is a clear edge of its own is the step.
+    // side up, does not fall back by more than [`TRANSITION_END_NOISE`] times its gradient
+    // noise), as far as `transition_px`, the sky-most local maximum that is a clear edge of
+    // its own is the step.
     let top = bin_of(-transition_px.max(sky_px)).clamp(2, BINS as isize - 3) as usize;
     let (peak, g0) = {
         let level = |i: usize| sign * smooth.get(i).copied().unwrap_or(0.0);
