@@ -72,10 +72,20 @@ pub enum Degradation {
     /// and in some frames a broad hum bar, brighter or darker, rolling down the frame.
     /// (After `NoHorizon`: a set's seed follows its place in this list.)
     HazyInterference,
+    /// A camera in dim light at high gain over a hazy horizon (a small step from the sky to
+    /// the airlight, then a ramp down to the ground): the scene as linear radiance,
+    /// vignetting, motion blur, an exposure, then electrons with their shot noise, read
+    /// noise, a random offset per row and blotchy chroma noise, clipping at the full well,
+    /// and the sRGB curve. Brighter than `low-light`: the step is there to be found.
+    CameraNoise,
+    /// A digital video link over the same hazy horizon: YCbCr with 4:2:0 chroma, each 8×8
+    /// block's DCT quantised with the JPEG tables at a coarse quality, lost macroblocks
+    /// concealed by repeating a neighbour, and torn bands of macroblock rows shifted sideways.
+    VideoLink,
 }
 
 impl Degradation {
-    pub const SETS: [Degradation; 18] = [
+    pub const SETS: [Degradation; 20] = [
         Degradation::Clean,
         Degradation::SensorNoise,
         Degradation::TransmissionNoise,
@@ -94,6 +104,8 @@ impl Degradation {
         Degradation::LowLight,
         Degradation::HazyInterference,
         Degradation::NoHorizon,
+        Degradation::CameraNoise,
+        Degradation::VideoLink,
     ];
 
     pub fn name(self) -> &'static str {
@@ -117,6 +129,8 @@ impl Degradation {
             Degradation::LowLight => "low-light",
             Degradation::HazyInterference => "hazy-interference",
             Degradation::NoHorizon => "no-horizon",
+            Degradation::CameraNoise => "camera-noise",
+            Degradation::VideoLink => "video-link",
         }
     }
 
@@ -372,6 +386,13 @@ impl Renderer {
                 colour: sky.map(|c| srgb_encode(airlight * srgb_decode(c))),
                 linear: true,
             }
+        } else if matches!(
+            self.degradation,
+            Degradation::CameraNoise | Degradation::VideoLink
+        ) {
+            hazy_horizon(&mut Rng::new(
+                self.seed ^ (index as u64).wrapping_mul(0x5851_F42D_4C95_7F2D) ^ 0x4A2E,
+            ))
         } else {
             Haze::NORMAL
         };
@@ -546,6 +567,18 @@ impl Renderer {
         if self.degradation == Degradation::LowLight {
             low_light(pixels, w, rng);
         }
+        if self.degradation == Degradation::CameraNoise {
+            camera_noise(pixels, w, h, &CameraNoise::draw(rng, scale), rng);
+        }
+        if self.degradation == Degradation::VideoLink {
+            // A little sensor grain first: the codec quantises it into its blocks.
+            for p in pixels.iter_mut() {
+                for c in p.iter_mut() {
+                    *c += 2.0 * rng.normal();
+                }
+            }
+            video_link(pixels, w, h, &VideoLink::draw(rng, scale), rng);
+        }
         let stripe = if self.has(Degradation::WhiteStripes) {
             Some(255.0)
         } else if self.degradation == Degradation::BlackStripes {
@@ -651,6 +684,312 @@ fn low_light(pixels: &mut [[f32; 3]], w: usize, rng: &mut Rng) {
                 + row_offset;
             let digital = ((read / step).round() * step / full_well).max(0.0);
             *c = 255.0 * digital.powf(1.0 / 2.2);
+        }
+    }
+}
+
+/// A hazy horizon as real haze draws it: the airlight at the horizon 8–30 levels under the
+/// sky's glow there (a small step), and distant ground coming out of it over 800–3000 m of
+/// extinction (a ramp a few degrees deep below the horizon). One draw a frame.
+fn hazy_horizon(rng: &mut Rng) -> Haze {
+    let below = rng.range(8.0, 30.0);
+    let sky = sky_colour(0.0);
+    // Airlight is a little greyer than the sky's glow just above it.
+    let grey = rng.range(0.0, 8.0);
+    Haze {
+        distance_m: rng.range(800.0, 3000.0),
+        colour: [
+            sky[0] - below,
+            sky[1] - below - 0.5 * grey,
+            sky[2] - below - grey,
+        ],
+        linear: false,
+    }
+}
+
+/// sRGB-encoded value (0–255) to linear light (0–1), and back.
+fn srgb_to_linear(value: f32) -> f32 {
+    let v = (value / 255.0).clamp(0.0, 1.0);
+    if v <= 0.040_45 {
+        v / 12.92
+    } else {
+        ((v + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+fn linear_to_srgb(linear: f32) -> f32 {
+    let l = linear.clamp(0.0, 1.0);
+    255.0
+        * if l <= 0.003_130_8 {
+            12.92 * l
+        } else {
+            1.055 * l.powf(1.0 / 2.4) - 0.055
+        }
+}
+
+/// One frame's camera for `camera-noise`: dim light read at high gain.
+#[derive(Clone, Copy, Debug)]
+pub struct CameraNoise {
+    /// Linear gain of the exposure (the scene's linear radiance times this is the share of
+    /// the full well collected).
+    pub exposure: f32,
+    /// Electrons at full scale: 120–600, a dim scene at high gain.
+    pub full_well: f32,
+    /// Read noise (electrons, per pixel and channel).
+    pub read_noise: f32,
+    /// Standard deviation of each row's offset (electrons, one draw a row for all channels).
+    pub row_noise: f32,
+    /// Chroma noise: colour-only noise, constant over 2×2-pixel cells (the demosaicing spreads
+    /// it), as a share of the pixel's shot noise.
+    pub chroma: f32,
+    /// Vignetting: light lost at the corners (share).
+    pub vignetting: f32,
+    /// Motion blur during the exposure (px, along `blur_angle`).
+    pub blur_px: f32,
+    pub blur_angle: f32,
+}
+
+impl CameraNoise {
+    /// A random camera for a frame `scale` × 320 px wide.
+    pub fn draw(rng: &mut Rng, scale: f32) -> Self {
+        CameraNoise {
+            exposure: rng.range(0.55, 1.1),
+            full_well: rng.range(120.0, 600.0),
+            read_noise: rng.range(2.0, 6.0),
+            row_noise: rng.range(0.5, 2.5),
+            chroma: rng.range(0.4, 1.0),
+            vignetting: rng.range(0.1, 0.4),
+            blur_px: rng.range(0.0, 2.5) * scale,
+            blur_angle: rng.range(0.0, std::f32::consts::PI),
+        }
+    }
+}
+
+/// The sensor of `camera-noise` on an sRGB scene: linear light, vignetting, motion blur,
+/// exposure into electrons with shot noise (Gaussian with the Poisson variance), read noise,
+/// a per-row offset and blotchy chroma noise, clipping at the full well, a 10-bit converter,
+/// gain back to full brightness and the sRGB curve.
+fn camera_noise(pixels: &mut [[f32; 3]], w: usize, h: usize, camera: &CameraNoise, rng: &mut Rng) {
+    let (cx, cy) = (0.5 * (w as f32 - 1.0), 0.5 * (h as f32 - 1.0));
+    let corner2 = cx * cx + cy * cy;
+    let mut linear: Vec<[f32; 3]> = pixels
+        .iter()
+        .enumerate()
+        .map(|(i, p)| {
+            let (dx, dy) = ((i % w) as f32 - cx, (i / w) as f32 - cy);
+            let light = 1.0 - camera.vignetting * (dx * dx + dy * dy) / corner2;
+            p.map(|c| srgb_to_linear(c) * light * camera.exposure)
+        })
+        .collect();
+    // Motion blur: the mean of the image at whole-pixel steps along the motion.
+    let taps = camera.blur_px.round() as isize;
+    if taps > 0 {
+        let (dx, dy) = (camera.blur_angle.cos(), camera.blur_angle.sin());
+        let source = linear.clone();
+        for (i, out) in linear.iter_mut().enumerate() {
+            let (x, y) = ((i % w) as isize, (i / w) as isize);
+            let mut sum = [0f32; 3];
+            for t in -taps..=taps {
+                let tf = 0.5 * t as f32;
+                let sx = (x + (tf * dx).round() as isize).clamp(0, w as isize - 1) as usize;
+                let sy = (y + (tf * dy).round() as isize).clamp(0, h as isize - 1) as usize;
+                for (s, c) in sum.iter_mut().zip(source[sy * w + sx]) {
+                    *s += c;
+                }
+            }
+            *out = sum.map(|s| s / (2 * taps + 1) as f32);
+        }
+    }
+    let step = camera.full_well / 1024.0;
+    let cells_wide = w.div_ceil(2);
+    let mut chroma_cells = vec![[0f32; 3]; cells_wide * h.div_ceil(2)];
+    for cell in chroma_cells.iter_mut() {
+        // Colour only: the three draws minus their mean.
+        let n = [rng.normal(), rng.normal(), rng.normal()];
+        let mean = (n[0] + n[1] + n[2]) / 3.0;
+        *cell = n.map(|v| camera.chroma * (v - mean));
+    }
+    let mut row_offset = 0.0;
+    for (i, (p, l)) in pixels.iter_mut().zip(&linear).enumerate() {
+        if i % w == 0 {
+            row_offset = camera.row_noise * rng.normal();
+        }
+        let cell = chroma_cells[(i / w / 2) * cells_wide + (i % w) / 2];
+        for ((c, &light), colour) in p.iter_mut().zip(l).zip(cell) {
+            let electrons = light * camera.full_well;
+            let shot = electrons.max(0.0).sqrt();
+            let read = electrons
+                + shot * (rng.normal() + colour)
+                + camera.read_noise * rng.normal()
+                + row_offset;
+            let digital = (read.clamp(0.0, camera.full_well) / step).round() * step;
+            *c = linear_to_srgb(digital / camera.full_well);
+        }
+    }
+}
+
+/// One frame's link for `video-link`.
+#[derive(Clone, Copy, Debug)]
+pub struct VideoLink {
+    /// JPEG quality (1–100) the quantisation tables are scaled to: 12–40 is coarse.
+    pub quality: f32,
+    /// Share of the 16×16 macroblocks lost and concealed.
+    pub loss: f32,
+    /// A torn band of macroblock rows: (first row, rows, shift in px), or none.
+    pub tear: Option<(usize, usize, isize)>,
+}
+
+impl VideoLink {
+    pub fn draw(rng: &mut Rng, scale: f32) -> Self {
+        let quality = rng.range(12.0, 40.0);
+        let loss = rng.range(0.01, 0.06);
+        let tear = (rng.uniform() < 0.4).then(|| {
+            let first = (rng.uniform() * 1000.0) as usize;
+            let rows = 1 + (rng.uniform() * 3.0) as usize;
+            let shift = (rng.range(4.0, 24.0) * scale) as isize;
+            (
+                first,
+                rows,
+                if rng.uniform() < 0.5 { -shift } else { shift },
+            )
+        });
+        VideoLink {
+            quality,
+            loss,
+            tear,
+        }
+    }
+}
+
+/// The JPEG standard's luma and chroma quantisation tables (Annex K), row by row.
+const JPEG_LUMA: [f32; 64] = [
+    16., 11., 10., 16., 24., 40., 51., 61., 12., 12., 14., 19., 26., 58., 60., 55., 14., 13., 16.,
+    24., 40., 57., 69., 56., 14., 17., 22., 29., 51., 87., 80., 62., 18., 22., 37., 56., 68., 109.,
+    103., 77., 24., 35., 55., 64., 81., 104., 113., 92., 49., 64., 78., 87., 103., 121., 120.,
+    101., 72., 92., 95., 98., 112., 100., 103., 99.,
+];
+const JPEG_CHROMA: [f32; 64] = [
+    17., 18., 24., 47., 99., 99., 99., 99., 18., 21., 26., 66., 99., 99., 99., 99., 24., 26., 56.,
+    99., 99., 99., 99., 99., 47., 66., 99., 99., 99., 99., 99., 99., 99., 99., 99., 99., 99., 99.,
+    99., 99., 99., 99., 99., 99., 99., 99., 99., 99., 99., 99., 99., 99., 99., 99., 99., 99., 99.,
+    99., 99., 99., 99., 99., 99., 99.,
+];
+
+/// An 8×8 block (row by row) through the DCT, quantised by `table` × `factor`, and back.
+fn dct_quantise(block: &mut [f32; 64], table: &[f32; 64], factor: f32) {
+    let basis: [[f32; 8]; 8] = std::array::from_fn(|k| {
+        std::array::from_fn(|n| {
+            let a = if k == 0 { (1.0f32 / 8.0).sqrt() } else { 0.5 };
+            a * ((2 * n + 1) as f32 * k as f32 * std::f32::consts::PI / 16.0).cos()
+        })
+    });
+    let mut coefficients = [0f32; 64];
+    for v in 0..8 {
+        for u in 0..8 {
+            let mut s = 0.0;
+            for y in 0..8 {
+                for x in 0..8 {
+                    s += basis[v][y] * basis[u][x] * block[y * 8 + x];
+                }
+            }
+            let q = (table[v * 8 + u] * factor).max(1.0);
+            coefficients[v * 8 + u] = (s / q).round() * q;
+        }
+    }
+    for y in 0..8 {
+        for x in 0..8 {
+            let mut s = 0.0;
+            for v in 0..8 {
+                for u in 0..8 {
+                    s += basis[v][y] * basis[u][x] * coefficients[v * 8 + u];
+                }
+            }
+            block[y * 8 + x] = s;
+        }
+    }
+}
+
+/// A digital video link on an sRGB frame: YCbCr (BT.601), the chroma averaged over 2×2
+/// pixels (4:2:0), every 8×8 block of each plane through the DCT quantised with the JPEG
+/// tables at `link.quality`, chroma replicated back; then lost 16×16 macroblocks concealed by
+/// repeating the one above (or to the left on the top row), and the torn band shifted
+/// sideways.
+#[allow(clippy::needless_range_loop)] // block, row and column indices, as in a codec
+fn video_link(pixels: &mut [[f32; 3]], w: usize, h: usize, link: &VideoLink, rng: &mut Rng) {
+    let factor = if link.quality < 50.0 {
+        50.0 / link.quality
+    } else {
+        (200.0 - 2.0 * link.quality) / 100.0
+    };
+    let (cw, ch) = (w.div_ceil(2), h.div_ceil(2));
+    let mut luma = vec![0f32; w * h];
+    let mut chroma = [vec![0f32; cw * ch], vec![0f32; cw * ch]];
+    for (i, p) in pixels.iter().enumerate() {
+        let [r, g, b] = *p;
+        let y = 0.299 * r + 0.587 * g + 0.114 * b;
+        luma[i] = y;
+        let (x, row) = (i % w, i / w);
+        let c = (row / 2) * cw + x / 2;
+        chroma[0][c] += 0.25 * (0.564 * (b - y));
+        chroma[1][c] += 0.25 * (0.713 * (r - y));
+    }
+    let code = |plane: &mut [f32], pw: usize, ph: usize, table: &[f32; 64]| {
+        for by in 0..ph / 8 {
+            for bx in 0..pw / 8 {
+                let mut block = [0f32; 64];
+                for y in 0..8 {
+                    for x in 0..8 {
+                        block[y * 8 + x] = plane[(by * 8 + y) * pw + bx * 8 + x] - 128.0;
+                    }
+                }
+                dct_quantise(&mut block, table, factor);
+                for y in 0..8 {
+                    for x in 0..8 {
+                        plane[(by * 8 + y) * pw + bx * 8 + x] = block[y * 8 + x] + 128.0;
+                    }
+                }
+            }
+        }
+    };
+    code(&mut luma, w, h, &JPEG_LUMA);
+    for plane in chroma.iter_mut() {
+        for v in plane.iter_mut() {
+            *v += 128.0;
+        }
+        code(plane, cw, ch, &JPEG_CHROMA);
+        for v in plane.iter_mut() {
+            *v -= 128.0;
+        }
+    }
+    for (i, p) in pixels.iter_mut().enumerate() {
+        let (x, row) = (i % w, i / w);
+        let c = (row / 2) * cw + x / 2;
+        let (y, cb, cr) = (luma[i], chroma[0][c], chroma[1][c]);
+        *p = [y + 1.403 * cr, y - 0.344 * cb - 0.714 * cr, y + 1.773 * cb];
+    }
+    for my in 0..h / 16 {
+        for mx in 0..w / 16 {
+            if rng.uniform() >= link.loss || (my == 0 && mx == 0) {
+                continue;
+            }
+            let (sx, sy) = if my > 0 { (mx, my - 1) } else { (mx - 1, my) };
+            for y in 0..16 {
+                for x in 0..16 {
+                    pixels[(my * 16 + y) * w + mx * 16 + x] =
+                        pixels[(sy * 16 + y) * w + sx * 16 + x];
+                }
+            }
+        }
+    }
+    if let Some((first, rows, shift)) = link.tear
+        && h >= 16
+    {
+        let first = first % (h / 16);
+        for y in first * 16..((first + rows) * 16).min(h) {
+            let line: Vec<[f32; 3]> = pixels[y * w..(y + 1) * w].to_vec();
+            for (x, p) in pixels[y * w..(y + 1) * w].iter_mut().enumerate() {
+                *p = line[(x as isize - shift).clamp(0, w as isize - 1) as usize];
+            }
         }
     }
 }
@@ -1095,6 +1434,179 @@ mod tests {
                 spread > 1.5,
                 "frame {index}: interference of {spread} levels"
             );
+        }
+    }
+
+    fn mean_and_variance(values: impl Iterator<Item = f32> + Clone) -> (f32, f32) {
+        let n = values.clone().count() as f32;
+        let mean = values.clone().sum::<f32>() / n;
+        let variance = values.map(|v| (v - mean) * (v - mean)).sum::<f32>() / n;
+        (mean, variance)
+    }
+
+    /// `camera-noise` is what it claims: noise counted in electrons in linear light (its
+    /// variance grows with the light, as shot noise does), an offset per row, colour noise
+    /// shared by 2×2-pixel cells, clipping at the full well; and its horizon is a small step
+    /// under the sky's glow.
+    #[test]
+    fn camera_noise_is_shot_read_row_and_chroma_noise_in_electrons() {
+        let (w, h) = (320, 240);
+        let camera = CameraNoise {
+            exposure: 1.0,
+            full_well: 200.0,
+            read_noise: 3.0,
+            row_noise: 2.0,
+            chroma: 0.8,
+            vignetting: 0.0,
+            blur_px: 0.0,
+            blur_angle: 0.0,
+        };
+        let electrons_of = |p: &[f32; 3]| p.map(|c| srgb_to_linear(c) * camera.full_well);
+        let mut by_level = Vec::new();
+        for (level, seed) in [(60.0f32, 1u64), (200.0, 2)] {
+            let mut pixels = vec![[level; 3]; w * h];
+            camera_noise(&mut pixels, w, h, &camera, &mut Rng::new(seed));
+            let green: Vec<f32> = pixels.iter().map(|p| electrons_of(p)[1]).collect();
+            let (mean, variance) = mean_and_variance(green.iter().copied());
+            by_level.push((mean, variance));
+            // Row offsets: the rows' means spread more than w pixels' noise would, by about the
+            // rows' own variance.
+            let row_means: Vec<f32> = green
+                .chunks_exact(w)
+                .map(|row| row.iter().sum::<f32>() / w as f32)
+                .collect();
+            let (_, row_variance) = mean_and_variance(row_means.iter().copied());
+            assert!(
+                row_variance - variance / w as f32 > 0.5 * camera.row_noise.powi(2),
+                "level {level}: rows vary {row_variance}, pixels {variance}"
+            );
+            // Chroma: red minus green is correlated within a 2×2 cell, not across cells.
+            let chroma = |i: usize| {
+                let e = electrons_of(&pixels[i]);
+                e[0] - e[1]
+            };
+            let (mut same, mut across) = (0.0f32, 0.0f32);
+            for v in (0..h).step_by(2) {
+                for u in (0..w - 2).step_by(2) {
+                    let i = v * w + u;
+                    same += chroma(i) * chroma(i + 1);
+                    across += chroma(i + 1) * chroma(i + 2);
+                }
+            }
+            assert!(
+                same > 0.2 * variance * (w * h / 4) as f32 && same > 3.0 * across.abs(),
+                "level {level}: chroma correlation within cells {same}, across {across}"
+            );
+        }
+        // Shot noise: the variance in electrons follows the light (Poisson), over the read
+        // and row noise's constant floor.
+        let [(dark_mean, dark_var), (bright_mean, bright_var)] = [by_level[0], by_level[1]];
+        let floor = camera.read_noise.powi(2) + camera.row_noise.powi(2);
+        let expected = (bright_mean + floor) / (dark_mean + floor);
+        let ratio = bright_var / dark_var;
+        assert!(
+            (ratio / expected - 1.0).abs() < 0.35,
+            "variance ratio {ratio}, shot noise gives {expected}"
+        );
+        // Clipping at the full well.
+        let mut white = vec![[250.0f32; 3]; w * h];
+        camera_noise(&mut white, w, h, &camera, &mut Rng::new(3));
+        let clipped = white.iter().filter(|p| p[1] >= 254.5).count();
+        assert!(clipped > w * h / 4, "{clipped} clipped");
+        // The scene: airlight 8–30 levels under the sky's glow at the horizon.
+        let sky = sky_colour(0.0);
+        let mut rng = Rng::new(4);
+        for _ in 0..50 {
+            let haze = hazy_horizon(&mut rng);
+            let step = sky[0] - haze.colour[0];
+            assert!((8.0..=30.0).contains(&step), "step {step}");
+            assert!((800.0..=3000.0).contains(&haze.distance_m));
+        }
+    }
+
+    /// `video-link` is what it claims: 8×8 DCT blocks (the picture's jumps fall on the block
+    /// grid), chroma shared by 2×2 pixels, lost macroblocks repeating the one above, and a
+    /// torn band shifted sideways.
+    #[test]
+    fn video_link_is_dct_blocks_420_chroma_lost_macroblocks_and_tears() {
+        let (w, h) = (320, 240);
+        // A smooth diagonal gradient with colour: no edges of its own.
+        let scene: Vec<[f32; 3]> = (0..w * h)
+            .map(|i| {
+                let (u, v) = ((i % w) as f32, (i / w) as f32);
+                let t = 60.0 + 0.3 * u + 0.4 * v;
+                [t, 0.8 * t + 20.0, 255.0 - t]
+            })
+            .collect();
+        let coarse = VideoLink {
+            quality: 15.0,
+            loss: 0.0,
+            tear: None,
+        };
+        let mut pixels = scene.clone();
+        video_link(&mut pixels, w, h, &coarse, &mut Rng::new(1));
+        let luma = |p: &[f32; 3]| 0.299 * p[0] + 0.587 * p[1] + 0.114 * p[2];
+        let (mut on_grid, mut inside) = (0.0f32, 0.0f32);
+        for v in 0..h {
+            for u in 1..w {
+                let jump = (luma(&pixels[v * w + u]) - luma(&pixels[v * w + u - 1])).abs();
+                if u % 8 == 0 {
+                    on_grid += jump;
+                } else {
+                    inside += jump / 7.0;
+                }
+            }
+        }
+        assert!(
+            on_grid > 3.0 * inside,
+            "jumps on the grid {on_grid}, inside {inside}"
+        );
+        // 4:2:0: the blue difference is the same over each 2×2 cell.
+        for v in (0..h).step_by(2) {
+            for u in (0..w).step_by(2) {
+                let cb = |i: usize| pixels[i][2] - luma(&pixels[i]);
+                let i = v * w + u;
+                for j in [i + 1, i + w, i + w + 1] {
+                    assert!((cb(i) - cb(j)).abs() < 0.05, "cell ({u}, {v})");
+                }
+            }
+        }
+        // Every macroblock lost: each one repeats the one above (the top row, the left one).
+        let mut lost = scene.clone();
+        let all_lost = VideoLink {
+            quality: 40.0,
+            loss: 1.0,
+            tear: None,
+        };
+        video_link(&mut lost, w, h, &all_lost, &mut Rng::new(2));
+        for v in 16..h {
+            for u in 0..w {
+                assert_eq!(lost[v * w + u], lost[(v - 16) * w + u], "({u}, {v})");
+            }
+        }
+        // A tear: the band's rows shifted right by 16 px.
+        let torn_link = VideoLink {
+            quality: 40.0,
+            loss: 0.0,
+            tear: Some((3, 1, 16)),
+        };
+        let mut whole = scene.clone();
+        video_link(&mut whole, w, h, &coarse_at(40.0), &mut Rng::new(3));
+        let mut torn = scene;
+        video_link(&mut torn, w, h, &torn_link, &mut Rng::new(3));
+        for v in 48..64 {
+            for u in 16..w {
+                assert_eq!(torn[v * w + u], whole[v * w + u - 16], "({u}, {v})");
+            }
+        }
+        assert_eq!(torn[47 * w + 100], whole[47 * w + 100]);
+    }
+
+    fn coarse_at(quality: f32) -> VideoLink {
+        VideoLink {
+            quality,
+            loss: 0.0,
+            tear: None,
         }
     }
 
