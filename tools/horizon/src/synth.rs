@@ -707,26 +707,6 @@ fn hazy_horizon(rng: &mut Rng) -> Haze {
     }
 }
 
-/// sRGB-encoded value (0–255) to linear light (0–1), and back.
-fn srgb_to_linear(value: f32) -> f32 {
-    let v = (value / 255.0).clamp(0.0, 1.0);
-    if v <= 0.040_45 {
-        v / 12.92
-    } else {
-        ((v + 0.055) / 1.055).powf(2.4)
-    }
-}
-
-fn linear_to_srgb(linear: f32) -> f32 {
-    let l = linear.clamp(0.0, 1.0);
-    255.0
-        * if l <= 0.003_130_8 {
-            12.92 * l
-        } else {
-            1.055 * l.powf(1.0 / 2.4) - 0.055
-        }
-}
-
 /// One frame's camera for `camera-noise`: dim light read at high gain.
 #[derive(Clone, Copy, Debug)]
 pub struct CameraNoise {
@@ -778,7 +758,7 @@ fn camera_noise(pixels: &mut [[f32; 3]], w: usize, h: usize, camera: &CameraNois
         .map(|(i, p)| {
             let (dx, dy) = ((i % w) as f32 - cx, (i / w) as f32 - cy);
             let light = 1.0 - camera.vignetting * (dx * dx + dy * dy) / corner2;
-            p.map(|c| srgb_to_linear(c) * light * camera.exposure)
+            p.map(|c| srgb_decode(c.min(255.0)) * light * camera.exposure)
         })
         .collect();
     // Motion blur: the mean of the image at whole-pixel steps along the motion.
@@ -823,7 +803,7 @@ fn camera_noise(pixels: &mut [[f32; 3]], w: usize, h: usize, camera: &CameraNois
                 + camera.read_noise * rng.normal()
                 + row_offset;
             let digital = (read.clamp(0.0, camera.full_well) / step).round() * step;
-            *c = linear_to_srgb(digital / camera.full_well);
+            *c = srgb_encode((digital / camera.full_well).min(1.0));
         }
     }
 }
@@ -1461,7 +1441,7 @@ mod tests {
             blur_px: 0.0,
             blur_angle: 0.0,
         };
-        let electrons_of = |p: &[f32; 3]| p.map(|c| srgb_to_linear(c) * camera.full_well);
+        let electrons_of = |p: &[f32; 3]| p.map(|c| srgb_decode(c.min(255.0)) * camera.full_well);
         let mut by_level = Vec::new();
         for (level, seed) in [(60.0f32, 1u64), (200.0, 2)] {
             let mut pixels = vec![[level; 3]; w * h];
