@@ -82,10 +82,17 @@ pub enum Degradation {
     /// block's DCT quantised with the JPEG tables at a coarse quality, lost macroblocks
     /// concealed by repeating a neighbour, and torn bands of macroblock rows shifted sideways.
     VideoLink,
+    /// What real horizons have and the other sets lack (issue 17's real frames): the skyline
+    /// is a tree line with hedges, buildings and low hills a few pixels high on a ridge
+    /// 2.5–5 km away, lakes on the fields before it, broken cloud down to the horizon and a
+    /// sky brighter on the sun's side; seen through a lens with vignetting, auto-exposure,
+    /// mild sensor noise and JPEG-like 8×8 DCT compression at moderate quality. Truth: the
+    /// level horizon, on which the silhouette's mean top lies (see [`Skyline`]).
+    TreeLine,
 }
 
 impl Degradation {
-    pub const SETS: [Degradation; 20] = [
+    pub const SETS: [Degradation; 21] = [
         Degradation::Clean,
         Degradation::SensorNoise,
         Degradation::TransmissionNoise,
@@ -106,6 +113,7 @@ impl Degradation {
         Degradation::NoHorizon,
         Degradation::CameraNoise,
         Degradation::VideoLink,
+        Degradation::TreeLine,
     ];
 
     pub fn name(self) -> &'static str {
@@ -131,6 +139,7 @@ impl Degradation {
             Degradation::NoHorizon => "no-horizon",
             Degradation::CameraNoise => "camera-noise",
             Degradation::VideoLink => "video-link",
+            Degradation::TreeLine => "tree-line",
         }
     }
 
@@ -284,6 +293,8 @@ pub struct Renderer {
     rays: Vec<[(f32, f32); 4]>,
     /// Off only in tests: the same frame without its interference.
     with_interference: bool,
+    /// The `tree-line` world's skyline.
+    skyline: Option<Skyline>,
 }
 
 /// Altitude above the fields (m) and of the cloud base above the airplane (m).
@@ -305,14 +316,16 @@ impl Renderer {
                 })
             })
             .collect();
+        let seed = seed.wrapping_mul(31).wrapping_add(degradation.index());
         Renderer {
             degradation,
             camera,
             width,
             height,
-            seed: seed.wrapping_mul(31).wrapping_add(degradation.index()),
+            seed,
             rays,
             with_interference: true,
+            skyline: (degradation == Degradation::TreeLine).then(|| Skyline::new(seed)),
         }
     }
 
@@ -407,6 +420,9 @@ impl Renderer {
             // Then Rz(heading) into north/east.
             let (wn, we, wd) = (ch * px - sh * py, sh * px + ch * py, pz);
             let length = (wn * wn + we * we + wd * wd).sqrt();
+            if let Some(skyline) = &self.skyline {
+                return skyline.shade(world, north, east, (wn, we, wd));
+            }
             if wd > 0.0 {
                 let t = ALTITUDE_M / wd;
                 let (gn, ge) = (north + t * wn, east + t * we);
@@ -578,6 +594,9 @@ impl Renderer {
                 }
             }
             video_link(pixels, w, h, &VideoLink::draw(rng, scale), rng);
+        }
+        if self.degradation == Degradation::TreeLine {
+            consumer_camera(pixels, w, h, rng);
         }
         let stripe = if self.has(Degradation::WhiteStripes) {
             Some(255.0)
@@ -971,6 +990,250 @@ fn video_link(pixels: &mut [[f32; 3]], w: usize, h: usize, link: &VideoLink, rng
                 *p = line[(x as isize - shift).clamp(0, w as isize - 1) as usize];
             }
         }
+    }
+}
+
+/// The `tree-line` world beyond the fields: a ridge `distance_m` away, its crest crowned by
+/// woods, hedges and buildings, held as the height of the silhouette's top above the camera
+/// (m) at each azimuth. A tree 10–25 m high 1.2–5 km away is 1–8 px at 480 px over 60°.
+///
+/// Truth: the level horizon (the trajectory's attitude, as in every set). A labeller of
+/// real video clicks the visible sky/ground boundary, which on such a skyline is a line
+/// through an irregular silhouette, neither the tree tops nor the gaps. The heights are
+/// shifted so that their mean over the full circle is zero: the silhouette's mean top lies
+/// on the level horizon, its tops above and its gaps below, and the line fitted through
+/// the visible boundary is the level horizon to within about ±0.3° over one view (the
+/// hills' ±0.1–0.2° and how woods and fields fall in it). The base of the trees is not visible (the ridge behind them is as dark), so the
+/// base is no candidate for the truth.
+struct Skyline {
+    distance_m: f32,
+    heights: Vec<f32>,
+    haze: Haze,
+    sun_azimuth: f32,
+    /// 0: a clear blue sky; towards 1: hazy or overcast white.
+    whiteness: f32,
+    /// Share of the sky under cloud.
+    cloud_cover: f32,
+}
+
+/// Azimuth bins of the skyline: about half a metre each at 5 km.
+const SKYLINE_BINS: usize = 1 << 16;
+
+impl Skyline {
+    fn new(seed: u64) -> Self {
+        let mut rng = Rng::new(seed ^ 0x7EE5_11E5);
+        let distance_m = rng.range(1200.0, 5000.0);
+        let circumference = std::f32::consts::TAU * distance_m;
+        let metres_per_bin = circumference / SKYLINE_BINS as f32;
+        let mut heights = vec![0f32; SKYLINE_BINS];
+        // Stamps `profile(d)` (height at `d` metres from `centre`, or None outside) as the
+        // upper envelope, so that crowns overlap as real ones do.
+        let mut stamp = |centre: f32, half_width: f32, profile: &dyn Fn(f32) -> f32| {
+            let first = ((centre - half_width) / metres_per_bin).floor() as i64;
+            let last = ((centre + half_width) / metres_per_bin).ceil() as i64;
+            for bin in first..=last {
+                let d = bin as f32 * metres_per_bin - centre;
+                if d.abs() > half_width {
+                    continue;
+                }
+                let slot = &mut heights[bin.rem_euclid(SKYLINE_BINS as i64) as usize];
+                *slot = slot.max(profile(d));
+            }
+        };
+        let mut at = 0.0;
+        while at < circumference {
+            let kind = rng.uniform();
+            let length = if kind < 0.45 {
+                // Woods: round crowns of 3–7 m radius, a canopy 12–24 m high.
+                let length = rng.range(40.0, 500.0);
+                let canopy = rng.range(12.0, 24.0);
+                let mut x = at;
+                while x < at + length {
+                    let radius = rng.range(3.0, 7.0);
+                    let top = canopy + rng.range(-4.0, 4.0);
+                    stamp(x + radius, radius, &|d: f32| {
+                        top - radius + radius * (1.0 - (d / radius).powi(2)).max(0.0).sqrt()
+                    });
+                    x += radius * rng.range(1.2, 2.2);
+                }
+                length
+            } else if kind < 0.65 {
+                // A hedge 2–4 m high with a tree standing out of it now and then.
+                let length = rng.range(50.0, 300.0);
+                let hedge = rng.range(2.0, 4.0);
+                stamp(at + 0.5 * length, 0.5 * length, &|_| hedge);
+                let mut x = at + rng.range(10.0, 60.0);
+                while x < at + length {
+                    let radius = rng.range(3.0, 6.0);
+                    let top = rng.range(10.0, 20.0);
+                    stamp(x, radius, &|d: f32| {
+                        top - radius + radius * (1.0 - (d / radius).powi(2)).max(0.0).sqrt()
+                    });
+                    x += rng.range(20.0, 80.0);
+                }
+                length
+            } else if kind < 0.75 {
+                // A farm or village: flat-topped blocks 8–30 m wide, 5–14 m high.
+                let length = rng.range(20.0, 120.0);
+                let mut x = at;
+                while x < at + length {
+                    let width = rng.range(8.0, 30.0);
+                    let top = rng.range(5.0, 14.0);
+                    stamp(x + 0.5 * width, 0.5 * width, &|_| top);
+                    x += width + rng.range(2.0, 20.0);
+                }
+                length
+            } else {
+                // Open fields: the bare crest.
+                rng.range(20.0, 400.0)
+            };
+            at += length;
+        }
+        // Low hills under it all, over a kilometre or two, periodic around the circle: ±0.1–0.2°
+        // seen from the camera, so that one view's skyline stays on the level horizon within
+        // about that.
+        let hills = distance_m * rng.range(0.1, 0.2).to_radians();
+        let hill_seed = rng.next_u64();
+        let loops = circumference / (std::f32::consts::TAU * 800.0);
+        for (bin, h) in heights.iter_mut().enumerate() {
+            let angle = bin as f32 / SKYLINE_BINS as f32 * std::f32::consts::TAU;
+            let n = value_noise(hill_seed, loops * angle.cos(), loops * angle.sin());
+            *h += hills * 2.0 * (n - 0.5);
+        }
+        let mean = heights.iter().sum::<f32>() / SKYLINE_BINS as f32;
+        for h in heights.iter_mut() {
+            *h -= mean;
+        }
+        let visibility = rng.range(3000.0, 6000.0);
+        Skyline {
+            distance_m,
+            heights,
+            haze: Haze {
+                distance_m: visibility,
+                colour: [172.0, 184.0, 198.0],
+                linear: false,
+            },
+            sun_azimuth: rng.range(0.0, std::f32::consts::TAU),
+            whiteness: rng.range(0.0, 0.8),
+            cloud_cover: rng.range(0.15, 0.5),
+        }
+    }
+
+    /// Height of the silhouette's top above the camera (m) at `azimuth` (rad from north).
+    fn height_at(&self, azimuth: f32) -> f32 {
+        let bin = (azimuth / std::f32::consts::TAU * SKYLINE_BINS as f32).floor() as i64;
+        self.heights[bin.rem_euclid(SKYLINE_BINS as i64) as usize]
+    }
+
+    /// The colour along the world ray `(wn, we, wd)` from the camera at `north`, `east`:
+    /// fields and lakes up to the ridge, the ridge and its silhouette, or the sky.
+    fn shade(&self, world: u64, north: f32, east: f32, (wn, we, wd): (f32, f32, f32)) -> [f32; 3] {
+        let horizontal = (wn * wn + we * we).sqrt().max(1e-6);
+        let length = (horizontal * horizontal + wd * wd).sqrt();
+        let rise = -wd / horizontal;
+        let azimuth = we.atan2(wn);
+        if wd > 0.0 {
+            let t = ALTITUDE_M / wd;
+            if t * horizontal < self.distance_m {
+                let (gn, ge) = (north + t * wn, east + t * we);
+                return field_or_lake(world, gn, ge, t * length, self.haze);
+            }
+        }
+        let along = azimuth * self.distance_m;
+        if rise < self.height_at(azimuth) / self.distance_m {
+            // Woods in shade, some texture, faded by the distance.
+            let up = rise * self.distance_m;
+            let texture = (fbm(world ^ 0x7EE, along / 5.0, up / 5.0, 2) - 0.5) * 30.0;
+            let k = 1.0 - (-self.distance_m / self.haze.distance_m).exp();
+            let forest = [40.0, 54.0, 34.0];
+            return std::array::from_fn(|i| {
+                (forest[i] + texture) * (1.0 - k) + self.haze.colour[i] * k
+            });
+        }
+        let elevation = (-wd / length).clamp(0.0, 1.0);
+        let overcast = [228.0, 230.0, 234.0];
+        let mut c = sky_colour(elevation);
+        for (channel, white) in c.iter_mut().zip(overcast) {
+            *channel += (white - *channel) * self.whiteness;
+        }
+        // The sun 35° up, out of view: the sky around its azimuth is brighter and warmer.
+        let sun = [
+            35f32.to_radians().cos() * self.sun_azimuth.cos(),
+            35f32.to_radians().cos() * self.sun_azimuth.sin(),
+            -35f32.to_radians().sin(),
+        ];
+        let cosine = (sun[0] * wn + sun[1] * we + sun[2] * wd) / length;
+        let angle = cosine.clamp(-1.0, 1.0).acos();
+        let glow = 45.0 * (-angle / 0.5).exp() + 20.0 * (-angle / 1.5).exp();
+        for (channel, warm) in c.iter_mut().zip([1.0, 0.93, 0.8]) {
+            *channel += glow * warm;
+        }
+        // Broken cloud down to the horizon (fading over 40 km, not 20: a cloud bank low on
+        // the skyline is what real horizons often have).
+        if wd < -1e-3 {
+            let t = CLOUD_BASE_M / -wd;
+            let (cn, ce) = (north + t * wn, east + t * we);
+            let density = fbm(world ^ 0xC10D, cn / 700.0, ce / 700.0, 4);
+            let cover = ((density - (1.0 - self.cloud_cover)) * 6.0).clamp(0.0, 1.0);
+            let fade = (-(t * length) / 40_000.0).exp();
+            let grey = 175.0 + 70.0 * fbm(world ^ 0x5AD, cn / 150.0, ce / 150.0, 2);
+            let k = cover * fade;
+            for channel in c.iter_mut() {
+                *channel = *channel * (1.0 - k) + grey * k;
+            }
+        }
+        c
+    }
+}
+
+/// The `tree-line` fields: [`ground_colour`]'s fields, with one field in ten a lake that
+/// mirrors the sky (darker than it, lightly rippled).
+fn field_or_lake(world: u64, north: f32, east: f32, distance: f32, haze: Haze) -> [f32; 3] {
+    let (fi, fj) = ((north / 80.0).floor() as i64, (east / 80.0).floor() as i64);
+    if lattice(world ^ 0x1A4E, fi, fj) < 0.1 {
+        let ripple = (fbm(world ^ 0x217, north / 3.0, east / 3.0, 2) - 0.5) * 20.0;
+        let water = sky_colour(0.05).map(|c| 0.8 * c + ripple);
+        let k = 1.0 - (-distance / haze.distance_m).exp();
+        return std::array::from_fn(|i| water[i] * (1.0 - k) + haze.colour[i] * k);
+    }
+    ground_colour(world, north, east, distance, false, haze)
+}
+
+/// An ordinary video camera: vignetting (the corners 15–35 % darker), auto-exposure bringing
+/// the frame's mean to 105–150 (a bright sky may clip), mild sensor noise (σ 1.5–4 levels), 8-bit clipping and
+/// JPEG-like compression at quality 50–85 ([`video_link`] with nothing lost).
+fn consumer_camera(pixels: &mut [[f32; 3]], w: usize, h: usize, rng: &mut Rng) {
+    let vignetting = rng.range(0.15, 0.35);
+    let (cx, cy) = (0.5 * w as f32, 0.5 * h as f32);
+    let corner2 = cx * cx + cy * cy;
+    for (i, p) in pixels.iter_mut().enumerate() {
+        let (dx, dy) = ((i % w) as f32 + 0.5 - cx, (i / w) as f32 + 0.5 - cy);
+        let k = 1.0 - vignetting * (dx * dx + dy * dy) / corner2;
+        for c in p.iter_mut() {
+            *c *= k;
+        }
+    }
+    let mean = pixels
+        .iter()
+        .map(|p| 0.299 * p[0] + 0.587 * p[1] + 0.114 * p[2])
+        .sum::<f32>()
+        / pixels.len().max(1) as f32;
+    let gain = (rng.range(105.0, 150.0) / mean.max(1.0)).clamp(0.6, 1.6);
+    let sigma = rng.range(1.5, 4.0);
+    for p in pixels.iter_mut() {
+        for c in p.iter_mut() {
+            *c = (*c * gain + sigma * rng.normal()).round().clamp(0.0, 255.0);
+        }
+    }
+    let quality = rng.range(50.0, 85.0);
+    let codec = VideoLink {
+        quality,
+        loss: 0.0,
+        tear: None,
+    };
+    video_link(pixels, w, h, &codec, rng);
+    for c in pixels.iter_mut().flatten() {
+        *c = c.round().clamp(0.0, 255.0);
     }
 }
 
@@ -1588,6 +1851,82 @@ mod tests {
             loss: 0.0,
             tear: None,
         }
+    }
+
+    /// The tree-line skyline is what it claims: its mean top is the level horizon over the
+    /// circle and within 0.35° over any 60° view; it is ragged (crowns above, gaps below),
+    /// 2 to 14 px from its lowest to its highest point across a view at 480 px.
+    #[test]
+    fn tree_line_skyline_is_ragged_and_centred_on_the_horizon() {
+        let focal_480 = 240.0 / 30f32.to_radians().tan();
+        for seed in 1..=3u64 {
+            let skyline = Skyline::new(seed);
+            let mean = skyline.heights.iter().sum::<f32>() / SKYLINE_BINS as f32;
+            assert!(mean.abs() < 1e-3, "seed {seed}: mean {mean}");
+            let above = skyline.heights.iter().filter(|&&h| h > 0.0).count();
+            let share = above as f32 / SKYLINE_BINS as f32;
+            assert!((0.1..0.9).contains(&share), "seed {seed}: {share} above");
+            for view in 0..12 {
+                let centre = view as f32 * 30f32.to_radians();
+                let tops: Vec<f32> = (0..480)
+                    .map(|u| {
+                        let azimuth = centre + ((u as f32 - 239.5) / focal_480).atan();
+                        skyline.height_at(azimuth) / skyline.distance_m
+                    })
+                    .collect();
+                let view_mean = tops.iter().sum::<f32>() / tops.len() as f32;
+                let (low, high) = tops
+                    .iter()
+                    .fold((f32::MAX, f32::MIN), |(l, h), &t| (l.min(t), h.max(t)));
+                let span_px = (high - low) * focal_480;
+                assert!(
+                    view_mean.atan().to_degrees().abs() < 0.35,
+                    "seed {seed} view {view}: mean {}°",
+                    view_mean.atan().to_degrees()
+                );
+                assert!(
+                    (2.0..14.0).contains(&span_px),
+                    "seed {seed} view {view}: {span_px} px"
+                );
+            }
+        }
+    }
+
+    /// The camera of the tree-line set: a flat grey scene comes out darker in the corners
+    /// than in the centre, brought to a mean of 105–150, noisy, and with 8×8 blocks: the
+    /// steps across block borders are larger than those inside the blocks.
+    #[test]
+    fn tree_line_camera_vignettes_exposes_and_compresses() {
+        let (w, h) = (480, 480);
+        let mut pixels: Vec<[f32; 3]> = (0..w * h)
+            .map(|i| {
+                // A gentle ramp so that the blocks have something to quantise.
+                let v = 90.0 + 60.0 * (i / w) as f32 / h as f32;
+                [v, v + 5.0, v + 12.0]
+            })
+            .collect();
+        consumer_camera(&mut pixels, w, h, &mut Rng::new(5));
+        let luma = |p: &[f32; 3]| 0.299 * p[0] + 0.587 * p[1] + 0.114 * p[2];
+        let mean = pixels.iter().map(luma).sum::<f32>() / pixels.len() as f32;
+        assert!((100.0..155.0).contains(&mean), "mean {mean}");
+        let patch = |x0: usize, y0: usize| {
+            (0..16)
+                .flat_map(|y| (0..16).map(move |x| (x0 + x, y0 + y)))
+                .map(|(x, y)| luma(&pixels[y * w + x]))
+                .sum::<f32>()
+                / 256.0
+        };
+        let (centre, corner) = (patch(232, 232), patch(0, 232).min(patch(464, 232)));
+        assert!(corner < 0.92 * centre, "corner {corner}, centre {centre}");
+        let step = |x: usize| {
+            (0..h)
+                .map(|y| (luma(&pixels[y * w + x + 1]) - luma(&pixels[y * w + x])).abs())
+                .sum::<f32>()
+        };
+        let (across, inside): (f32, f32) = (1..w / 8 - 1)
+            .map(|b| (step(8 * b - 1), step(8 * b + 3)))
+            .fold((0.0, 0.0), |(a, i), (x, y)| (a + x, i + y));
+        assert!(across > 1.2 * inside, "across {across}, inside {inside}");
     }
 
     /// The honesty set holds no horizon: every frame is pitched out of it, so the bench
