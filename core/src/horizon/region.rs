@@ -275,15 +275,27 @@ fn top_profile(
     halves
 }
 
+/// The two halves' bins added: the profile over the whole line.
+fn joined([first, second]: &[Bins; 2]) -> Bins {
+    let mut whole = *first;
+    for (w, h) in whole.iter_mut().zip(second.iter()) {
+        *w = (w.0 + h.0, w.1 + h.1);
+    }
+    whole
+}
+
+/// The mean luma of bin `i`, if it holds enough pixels to say.
+fn bin_mean(bins: &Bins, i: usize) -> Option<f32> {
+    bins.get(i)
+        .filter(|b| b.0 >= TOP_MIN_PIXELS)
+        .map(|b| b.1 / b.0)
+}
+
 /// The steepest fall towards the ground (bin index falling) among the bins near the
 /// profile's highest, searched in `range`: its size and the index of the bin between its
 /// two sides.
 fn steepest_top_fall(bins: &Bins, range: core::ops::Range<usize>) -> Option<(f32, usize)> {
-    let mean = |i: usize| {
-        bins.get(i)
-            .filter(|b| b.0 >= TOP_MIN_PIXELS)
-            .map(|b| b.1 / b.0)
-    };
+    let mean = |i: usize| bin_mean(bins, i);
     let (mut high, mut low) = (f32::MIN, f32::MAX);
     for i in 0..TOP_BINS {
         if let Some(m) = mean(i) {
@@ -350,11 +362,7 @@ pub(crate) fn top_step(
         // Turned about the foot of the centre's perpendicular on the line.
         let direction = (line.angle + delta, line.rho * libm::cosf(delta));
         let halves = top_profile(grey, geo, camera, direction, rho_step, sky_ward);
-        let mut whole = halves[0];
-        for (w, h) in whole.iter_mut().zip(halves[1].iter()) {
-            *w = (w.0 + h.0, w.1 + h.1);
-        }
-        if let Some((fall, at)) = steepest_top_fall(&whole, 0..TOP_BINS)
+        if let Some((fall, at)) = steepest_top_fall(&joined(&halves), 0..TOP_BINS)
             && best.as_ref().is_none_or(|b| fall > b.fall)
         {
             *best = Some(Candidate {
@@ -384,16 +392,8 @@ pub(crate) fn top_step(
     let near = at.saturating_sub(TOP_HALVES_AGREE + 2)..at + TOP_HALVES_AGREE + 3;
     let [a, b] = halves.map(|h| steepest_top_fall(&h, near.clone()).map(|(_, i)| i));
     let halves_agree = matches!((a, b), (Some(a), Some(b)) if a.abs_diff(b) <= TOP_HALVES_AGREE);
-    let whole: Bins = core::array::from_fn(|i| {
-        let (p, q) = (halves[0][i], halves[1][i]);
-        (p.0 + q.0, p.1 + q.1)
-    });
-    let mean = |i: usize| {
-        whole
-            .get(i)
-            .filter(|b| b.0 >= TOP_MIN_PIXELS)
-            .map(|b| b.1 / b.0)
-    };
+    let whole = joined(&halves);
+    let mean = |i: usize| bin_mean(&whole, i);
     let one_transition = (TOP_REACH..at.saturating_sub(1))
         .all(|j| matches!((mean(j), mean(j + 1)), (Some(g), Some(s)) if g - s <= TOP_MIN_STEP));
     let s = at as f32 - TOP_REACH as f32;
