@@ -257,6 +257,14 @@ struct Scored {
 }
 
 impl Scored {
+    /// Whether the horizon's sky side is the line's brighter side (a line's normal points to
+    /// its brighter side, see `hough::Line`).
+    fn sky_brighter(&self) -> bool {
+        libm::fabsf(wrap_angle(
+            self.horizon.camera_roll_rad - (self.line.angle + PI),
+        )) < 0.5 * PI
+    }
+
     /// `line` as the horizon `horizon`, scored by how well it separates the frame and how
     /// much of its length is drawn; not yet on the track.
     fn oriented(
@@ -598,9 +606,7 @@ impl HorizonDetector {
             max_angle_difference,
         };
         let mut chosen = chosen;
-        let sky_brighter = libm::fabsf(wrap_angle(
-            chosen.horizon.camera_roll_rad - (chosen.line.angle + PI),
-        )) < 0.5 * PI;
+        let sky_brighter = chosen.sky_brighter();
         let mut climbed = false;
         for _ in 0..if from_region { 0 } else { 2 } {
             match higher_edge(&context, accumulator, &chosen, sky_brighter, min_votes) {
@@ -678,9 +684,7 @@ impl HorizonDetector {
         }
         let samples = ws.samples.get(..sample_count).unwrap_or(&[]);
         let mut sky_brighter = if destriped {
-            libm::fabsf(wrap_angle(
-                chosen.horizon.camera_roll_rad - (chosen.line.angle + PI),
-            )) < 0.5 * PI
+            chosen.sky_brighter()
         } else {
             sky_brighter
         };
@@ -708,9 +712,7 @@ impl HorizonDetector {
                 top_disagrees = !top.halves_agree;
                 moved_to_top = true;
                 chosen = self.scored(line, separation, REGION_COVERAGE);
-                sky_brighter = libm::fabsf(wrap_angle(
-                    chosen.horizon.camera_roll_rad - (chosen.line.angle + PI),
-                )) < 0.5 * PI;
+                sky_brighter = chosen.sky_brighter();
             }
         }
         // An edge line can lie on the ground's flank of the same ridge: the ramp under a
