@@ -23,24 +23,15 @@ use super::camera::Camera;
 use super::frame::{Frame, Pixels, luma};
 
 /// Bins of the profile either side of the coarse line, each [`BIN_PX`] wide.
-const HALF_BINS: usize = 112;
+const HALF_BINS: usize = 48;
 const BINS: usize = 2 * HALF_BINS + 1;
 const BIN_PX: f32 = 0.5;
-/// Bins either side of the coarse line the gradient noise is measured over.
-const NOISE_HALF_BINS: usize = 46;
 /// Least ratio of the edge's gradient to the profile's gradient noise for the position to be
 /// trusted (below it the coarse line stays).
 pub(crate) const MIN_SIGNIFICANCE: f32 = 4.0;
 /// A local gradient maximum on the sky side of the strongest, in the same transition, is the
 /// horizon's step when it has at least this share of the strongest one's gradient.
 const TOP_STEP_SHARE: f32 = 0.3;
-/// Beyond the search around the coarse line, the walk to the top of the transition ends where
-/// the level (sky side up) falls back by this many times the profile's gradient noise.
-const TRANSITION_END_NOISE: f32 = 2.0;
-/// How far above the coarse line the top of a hazy transition is looked for (tan 5°): the
-/// ramp's steepest part, where the coarse line lands, lies half the haze's angular depth
-/// below the horizon, a few degrees at most.
-const TRANSITION_TAN: f32 = 0.087;
 /// Largest roll change the two half-profiles may make (rad): more means the halves see
 /// different edges (an occlusion, a curved shore), and only the offset is moved.
 const MAX_ROLL_CHANGE: f32 = 0.03;
@@ -156,15 +147,8 @@ struct Edge {
 }
 
 /// The edge in a profile within `[-sky_px, ground_px]` of the coarse line, with the
-/// polarity `sky_brighter`, moved up to the top of its transition as far as `transition_px`
-/// above the coarse line.
-fn find_edge(
-    profile: &Profile,
-    sky_px: f32,
-    ground_px: f32,
-    transition_px: f32,
-    sky_brighter: bool,
-) -> Option<Edge> {
+/// polarity `sky_brighter`.
+fn find_edge(profile: &Profile, sky_px: f32, ground_px: f32, sky_brighter: bool) -> Option<Edge> {
     let m = profile.means()?;
     // A light [1 2 1] smoothing across bins (half a pixel), then a central difference over
     // one pixel: symmetric, so it moves no edge.
@@ -200,26 +184,15 @@ fn find_edge(
     if g0 <= 0.0 {
         return None;
     }
-    // Noise: the spread of the gradient away from the edge (outside ±3 px of it), within
-    // [`NOISE_HALF_BINS`] of the coarse line, the bins outside what was read counting as flat
-    // (they are filled flat). Pixels read beyond the search on the sky side, for the walk to
-    // the top of a hazy transition, count as flat too: the thresholds on it were set when the
-    // profile was read no further than 3 px past the search.
-    let read_lo = if transition_px > sky_px {
-        bin_of(-sky_px - 3.0)
-    } else {
-        0
-    };
+    // Noise: the spread of the gradient away from the edge (outside ±3 px of it).
     let (mut n, mut s2) = (0.0f32, 0.0f32);
-    for i in HALF_BINS - NOISE_HALF_BINS..=HALF_BINS + NOISE_HALF_BINS {
+    for i in 2..BINS - 2 {
         if (i as isize - peak as isize).unsigned_abs() as f32 * BIN_PX <= 3.0 {
             continue;
         }
+        let g = gradient(i) - gradient(i + 1);
         n += 1.0;
-        if i as isize >= read_lo {
-            let g = gradient(i) - gradient(i + 1);
-            s2 += g * g;
-        }
+        s2 += g * g;
     }
     let noise = if n > 0.0 {
         libm::sqrtf(s2 / n) * core::f32::consts::FRAC_1_SQRT_2
@@ -229,31 +202,21 @@ fn find_edge(
     // The horizon is the top of the transition. Under haze the ground comes out of the
     // airlight along a ramp whose steepest part lies k/2 below the horizon (a fixed angle, so
     // more pixels and a steeper gradient per pixel at lower resolution), under a step from the
-    // sky that may be smaller. The coarse line then lies on the ramp, and at 320 px several
-    // degrees down it: further than the search around it reaches. Walking from the gradient
-    // maximum towards the sky while the profile keeps rising (one transition: the level, sky
-    // side up, does not fall back by more than [`TRANSITION_END_NOISE`] times its gradient
-    // noise), as far as `transition_px`, the sky-most local maximum that is a clear edge of
-    // its own is the step.
-    let top = bin_of(-transition_px.max(sky_px)).clamp(2, BINS as isize - 3) as usize;
+    // sky that may be smaller: at 320 px the ramp out-grew the step and the line went 3 px
+    // (0.7°) down. Walking from the gradient maximum towards the sky while the profile does
+    // not rise again (one transition), the sky-most local maximum that is a clear edge of its own
+    // is the step.
     let (peak, g0) = {
-        let level = |i: usize| sign * smooth.get(i).copied().unwrap_or(0.0);
-        let fall_back = TRANSITION_END_NOISE * (noise + 0.05);
-        let mut highest = level(peak);
         let mut chosen = (peak, g0);
         let mut i = peak;
-        while i > top {
+        while i > lo {
             i -= 1;
             let g = gradient(i);
-            let here = level(i);
-            // The transition has ended where, within the search, the profile rises again by
-            // more than its noise from one pixel to the next, or where, anywhere, its level has
-            // fallen back from the highest so far by more than twice that (beyond the search,
-            // where a long ramp's small slope is buried in the noise pixel by pixel).
-            if (i >= lo && g < -(noise + 0.05)) || here < highest - fall_back {
+            // Flat stretches belong to the transition; where the profile rises again (by more
+            // than its noise) it has ended.
+            if g < -(noise + 0.05) {
                 break;
             }
-            highest = highest.max(here);
             if g >= gradient(i.saturating_sub(1))
                 && g > gradient(i + 1)
                 && g >= TOP_STEP_SHARE * g0
@@ -409,17 +372,7 @@ pub(crate) fn place(
     let along_columns = libm::fabsf(sc.1 * camera.fx) >= libm::fabsf(sc.0 * camera.fy);
     let search_px = search_px.clamp(2.0, HALF_BINS as f32 * BIN_PX - 3.0);
     let ground_px = (0.5 * search_px).max(3.0);
-    // The top of a hazy transition is looked for only under a sky brighter than the ground:
-    // the airlight a hazy ground comes out of is at most as bright as the sky at the horizon,
-    // and the ground is darker still. The other polarity, walked out this far, climbs the
-    // sky's own glow (synth `haze` at 640 px, whose hazy ground is brighter than the sky).
-    let transition_px = if sky_brighter {
-        (0.5 * (camera.fx + camera.fy) * TRANSITION_TAN)
-            .clamp(search_px, HALF_BINS as f32 * BIN_PX - 3.0)
-    } else {
-        search_px
-    };
-    let (reach_sky, reach_ground) = (transition_px + 3.0, ground_px + 3.0);
+    let (reach_sky, reach_ground) = (search_px + 3.0, ground_px + 3.0);
     let (major, minor) = if along_columns { (w, h) } else { (h, w) };
     let centre = if along_columns { camera.cx } else { camera.cy };
     let mut halves = [Profile::EMPTY, Profile::EMPTY];
@@ -553,7 +506,7 @@ pub(crate) fn place(
         pixels: total_pixels,
         ..Placement::default()
     };
-    let Some(whole) = find_edge(&both, search_px, ground_px, transition_px, sky_brighter) else {
+    let Some(whole) = find_edge(&both, search_px, ground_px, sky_brighter) else {
         return (line, placement);
     };
     placement.step = whole.step * if sky_brighter { 1.0 } else { -1.0 };
@@ -587,7 +540,7 @@ pub(crate) fn place(
         if p.columns < 8 {
             return None;
         }
-        let e = find_edge(p, search_px, ground_px, transition_px, sky_brighter)?;
+        let e = find_edge(p, search_px, ground_px, sky_brighter)?;
         if e.significance < MIN_SIGNIFICANCE || libm::fabsf(e.offset_px - whole.offset_px) > 3.0 {
             return None;
         }
