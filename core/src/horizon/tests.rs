@@ -482,6 +482,31 @@ fn assert_right_or_honest(h: Option<Horizon>, roll_deg: f32, pitch_deg: f32, wha
 /// Haze seen from altitude: the ground fades into an airlight a little darker than the
 /// sky, so the horizon is a small step followed by a long ramp (extinction `k` = altitude /
 /// haze length, the ramp's steepest part lies at a depression of k/2).
+/// `haze` with ground texture (hash `seed`), a sinusoid `(ku, kv, phase, amplitude)` across
+/// the frame and a hum bar `(centre, strength, frame height)` a sixth of the frame tall: the
+/// analogue interference of the stripes' tests.
+fn striped_over(
+    haze: impl Fn(f32, f32, f32) -> f32,
+    seed: u64,
+    (ku, kv, phase, amplitude): (f32, f32, f32, f32),
+    (bar_centre, bar, height): (f32, f32, f32),
+) -> impl Fn(f32, f32, f32) -> f32 {
+    move |u, v, d| {
+        let texture = if d <= 0.0 {
+            0.0
+        } else {
+            20.0 * (hash((u / 7.0) as i64, (v / 5.0) as i64, seed) - 0.5)
+        };
+        let hum = libm::fabsf(v - bar_centre) / (height / 6.0);
+        let hum = if hum < 1.0 {
+            bar * 0.5 * (1.0 + libm::cosf(hum * PI))
+        } else {
+            0.0
+        };
+        haze(u, v, d) + texture + amplitude * libm::sinf(ku * u + kv * v + phase) + hum
+    }
+}
+
 fn hazy(sky: f32, airlight: f32, ground: f32, k: f32) -> impl Fn(f32, f32, f32) -> f32 {
     move |_, _, d| {
         if d <= 0.0 {
@@ -1025,20 +1050,17 @@ fn stripes_parallel_to_the_horizon_are_subtracted() {
                 let phase = i as f32 * 0.7;
                 let bar_centre = (0.2 + 0.1 * i as f32) * h as f32;
                 let haze = hazy(sky, airlight, ground, k);
-                let grey = render_grey(&camera, roll * DEG, pitch * DEG, |u, v, d| {
-                    let texture = if d <= 0.0 {
-                        0.0
-                    } else {
-                        20.0 * (hash((u / 7.0) as i64, (v / 5.0) as i64, 9) - 0.5)
-                    };
-                    let hum = libm::fabsf(v - bar_centre) / (h as f32 / 6.0);
-                    let hum = if hum < 1.0 {
-                        bar * 0.5 * (1.0 + libm::cosf(hum * PI))
-                    } else {
-                        0.0
-                    };
-                    haze(u, v, d) + texture + amplitude * libm::sinf(ku * u + kv * v + phase) + hum
-                });
+                let grey = render_grey(
+                    &camera,
+                    roll * DEG,
+                    pitch * DEG,
+                    striped_over(
+                        haze,
+                        9,
+                        (ku, kv, phase, amplitude),
+                        (bar_centre, bar, h as f32),
+                    ),
+                );
                 let found = detect_once(camera, Pixels::Grey(&grey));
                 if assert_right_or_honest(
                     found,
@@ -1139,20 +1161,17 @@ fn interference_across_a_thick_haze_is_read_at_the_top_of_its_ridge() {
             let phase = i as f32 * 0.9;
             let bar_centre = (0.15 + 0.12 * i as f32) * h as f32;
             let haze = hazy(185.0, 172.0, 95.0, 0.06);
-            let grey = render_grey(&camera, roll * DEG, pitch * DEG, |u, v, d| {
-                let texture = if d <= 0.0 {
-                    0.0
-                } else {
-                    20.0 * (hash((u / 7.0) as i64, (v / 5.0) as i64, 11) - 0.5)
-                };
-                let hum = libm::fabsf(v - bar_centre) / (h as f32 / 6.0);
-                let hum = if hum < 1.0 {
-                    bar * 0.5 * (1.0 + libm::cosf(hum * PI))
-                } else {
-                    0.0
-                };
-                haze(u, v, d) + texture + amplitude * libm::sinf(ku * u + kv * v + phase) + hum
-            });
+            let grey = render_grey(
+                &camera,
+                roll * DEG,
+                pitch * DEG,
+                striped_over(
+                    haze,
+                    11,
+                    (ku, kv, phase, amplitude),
+                    (bar_centre, bar, h as f32),
+                ),
+            );
             // Before: 1.7–3.4° low, five of the fourteen with confidence 0.41–0.8.
             assert_attitude(detect_once(camera, Pixels::Grey(&grey)), roll, pitch, 1.0);
         }
