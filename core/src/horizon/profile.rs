@@ -23,15 +23,27 @@ use super::camera::Camera;
 use super::frame::{Frame, Pixels, luma};
 
 /// Bins of the profile either side of the coarse line, each [`BIN_PX`] wide.
-const HALF_BINS: usize = 48;
+const HALF_BINS: usize = 112;
 const BINS: usize = 2 * HALF_BINS + 1;
 const BIN_PX: f32 = 0.5;
+/// Bins either side of the coarse line the gradient noise is measured over.
+const NOISE_HALF_BINS: usize = 46;
 /// Least ratio of the edge's gradient to the profile's gradient noise for the position to be
 /// trusted (below it the coarse line stays).
 pub(crate) const MIN_SIGNIFICANCE: f32 = 4.0;
 /// A local gradient maximum on the sky side of the strongest, in the same transition, is the
 /// horizon's step when it has at least this share of the strongest one's gradient.
 const TOP_STEP_SHARE: f32 = 0.3;
+/// Beyond the search around the coarse line, the walk to the top of the transition ends where
+/// the level (sky side up) falls back by this many times the profile's gradient noise.
+const TRANSITION_END_NOISE: f32 = 2.0;
+/// How far above the coarse line the top of a hazy transition is looked for (tan 5°): the
+/// ramp's steepest part, where the coarse line lands, lies half the haze's angular depth
+/// below the horizon, a few degrees at most.
+const TRANSITION_TAN: f32 = 0.087;
+/// Pixels past the 3 px margin of a read that the smoothing and the central difference reach
+/// into: read them too, so that the short read's noise estimate is the long read's.
+const SMOOTHING_PX: f32 = 2.0;
 /// Largest roll change the two half-profiles may make (rad): more means the halves see
 /// different edges (an occlusion, a curved shore), and only the offset is moved.
 const MAX_ROLL_CHANGE: f32 = 0.03;
@@ -107,31 +119,25 @@ impl Profile {
         if first >= last || last - first < 8 || 3 * filled < last - first + 1 {
             return None;
         }
-        // Gaps (a level line fills only every other bin) from the nearest filled bins.
-        let mut last: Option<(usize, f32)> = None;
-        let mut i = 0;
-        while i < BINS {
+        // Outside what was read, the nearest filled bin's level (flat); gaps inside (a level
+        // line fills only every other bin) linearly from the filled bins either side.
+        let (head, tail) = (m.get(first).copied()?, m.get(last).copied()?);
+        m.iter_mut().take(first).for_each(|v| *v = head);
+        m.iter_mut().skip(last + 1).for_each(|v| *v = tail);
+        let mut previous = (first, head);
+        for i in first + 1..last {
             let v = m.get(i).copied().unwrap_or(f32::NAN);
-            if v.is_nan() {
-                let next = (i + 1..BINS).find_map(|j| {
-                    let w = m.get(j).copied().unwrap_or(f32::NAN);
-                    (!w.is_nan()).then_some((j, w))
-                });
-                let value = match (last, next) {
-                    (Some((a, va)), Some((b, vb))) => {
-                        va + (vb - va) * (i - a) as f32 / (b - a) as f32
-                    }
-                    (Some((_, va)), None) => va,
-                    (None, Some((_, vb))) => vb,
-                    (None, None) => 0.0,
-                };
-                if let Some(slot) = m.get_mut(i) {
-                    *slot = value;
-                }
-            } else {
-                last = Some((i, v));
+            if !v.is_nan() {
+                previous = (i, v);
+                continue;
             }
-            i += 1;
+            let (a, va) = previous;
+            let (b, vb) = (i + 1..=last)
+                .find_map(|j| m.get(j).copied().filter(|w| !w.is_nan()).map(|w| (j, w)))
+                .unwrap_or((last, tail));
+            if let Some(slot) = m.get_mut(i) {
+                *slot = va + (vb - va) * (i - a) as f32 / (b - a) as f32;
+            }
         }
         Some(m)
     }
@@ -144,11 +150,23 @@ struct Edge {
     offset_px: f32,
     step: f32,
     significance: f32,
+    /// The walk to the top of the transition was still going where the profile's read
+    /// ended: read further to find its top.
+    walk_reached_read_end: bool,
 }
 
 /// The edge in a profile within `[-sky_px, ground_px]` of the coarse line, with the
-/// polarity `sky_brighter`.
-fn find_edge(profile: &Profile, sky_px: f32, ground_px: f32, sky_brighter: bool) -> Option<Edge> {
+/// polarity `sky_brighter`, moved up to the top of its transition as far as `transition_px`
+/// above the coarse line, or as far as the profile was read (`read_px` above it, plus the 3 px
+/// the smoothing needs).
+fn find_edge(
+    profile: &Profile,
+    sky_px: f32,
+    ground_px: f32,
+    transition_px: f32,
+    read_px: f32,
+    sky_brighter: bool,
+) -> Option<Edge> {
     let m = profile.means()?;
     // A light [1 2 1] smoothing across bins (half a pixel), then a central difference over
     // one pixel: symmetric, so it moves no edge.
@@ -184,15 +202,26 @@ fn find_edge(profile: &Profile, sky_px: f32, ground_px: f32, sky_brighter: bool)
     if g0 <= 0.0 {
         return None;
     }
-    // Noise: the spread of the gradient away from the edge (outside ±3 px of it).
+    // Noise: the spread of the gradient away from the edge (outside ±3 px of it), within
+    // [`NOISE_HALF_BINS`] of the coarse line, the bins outside what was read counting as flat
+    // (they are filled flat). Pixels read beyond the search on the sky side, for the walk to
+    // the top of a hazy transition, count as flat too: the thresholds on it were set when the
+    // profile was read no further than 3 px past the search.
+    let read_lo = if transition_px > sky_px {
+        bin_of(-sky_px - 3.0)
+    } else {
+        0
+    };
     let (mut n, mut s2) = (0.0f32, 0.0f32);
-    for i in 2..BINS - 2 {
+    for i in HALF_BINS - NOISE_HALF_BINS..=HALF_BINS + NOISE_HALF_BINS {
         if (i as isize - peak as isize).unsigned_abs() as f32 * BIN_PX <= 3.0 {
             continue;
         }
-        let g = gradient(i) - gradient(i + 1);
         n += 1.0;
-        s2 += g * g;
+        if i as isize >= read_lo {
+            let g = gradient(i) - gradient(i + 1);
+            s2 += g * g;
+        }
     }
     let noise = if n > 0.0 {
         libm::sqrtf(s2 / n) * core::f32::consts::FRAC_1_SQRT_2
@@ -202,21 +231,33 @@ fn find_edge(profile: &Profile, sky_px: f32, ground_px: f32, sky_brighter: bool)
     // The horizon is the top of the transition. Under haze the ground comes out of the
     // airlight along a ramp whose steepest part lies k/2 below the horizon (a fixed angle, so
     // more pixels and a steeper gradient per pixel at lower resolution), under a step from the
-    // sky that may be smaller: at 320 px the ramp out-grew the step and the line went 3 px
-    // (0.7°) down. Walking from the gradient maximum towards the sky while the profile does
-    // not rise again (one transition), the sky-most local maximum that is a clear edge of its own
-    // is the step.
+    // sky that may be smaller. The coarse line then lies on the ramp, and at 320 px several
+    // degrees down it: further than the search around it reaches. Walking from the gradient
+    // maximum towards the sky while the profile keeps rising (one transition: the level, sky
+    // side up, does not fall back by more than [`TRANSITION_END_NOISE`] times its gradient
+    // noise), as far as `transition_px`, the sky-most local maximum that is a clear edge of
+    // its own is the step.
+    let top = bin_of(-transition_px.min(read_px).max(sky_px)).clamp(2, BINS as isize - 3) as usize;
+    let mut walk_reached_read_end = read_px < transition_px;
     let (peak, g0) = {
+        let level = |i: usize| sign * smooth.get(i).copied().unwrap_or(0.0);
+        let fall_back = TRANSITION_END_NOISE * (noise + 0.05);
+        let mut highest = level(peak);
         let mut chosen = (peak, g0);
         let mut i = peak;
-        while i > lo {
+        while i > top {
             i -= 1;
             let g = gradient(i);
-            // Flat stretches belong to the transition; where the profile rises again (by more
-            // than its noise) it has ended.
-            if g < -(noise + 0.05) {
+            let here = level(i);
+            // The transition has ended where, within the search, the profile rises again by
+            // more than its noise from one pixel to the next, or where, anywhere, its level has
+            // fallen back from the highest so far by more than twice that (beyond the search,
+            // where a long ramp's small slope is buried in the noise pixel by pixel).
+            if (i >= lo && g < -(noise + 0.05)) || here < highest - fall_back {
+                walk_reached_read_end = false;
                 break;
             }
+            highest = highest.max(here);
             if g >= gradient(i.saturating_sub(1))
                 && g > gradient(i + 1)
                 && g >= TOP_STEP_SHARE * g0
@@ -244,6 +285,7 @@ fn find_edge(profile: &Profile, sky_px: f32, ground_px: f32, sky_brighter: bool)
         offset_px,
         step: at(offset_px - 2.0) - at(offset_px + 2.0),
         significance: g0 / (noise + 0.05),
+        walk_reached_read_end,
     })
 }
 
@@ -353,26 +395,18 @@ fn distance(camera: &Camera, line: &HorizonLine, sc: (f32, f32), u: f32, v: f32)
     Some(sc.0 * x + sc.1 * y - line.offset)
 }
 
-/// Moves `line` to the full-resolution edge within `search_px` pixels on its sky side (and a
-/// few on its ground side). `sky_brighter`: the polarity the Hough stage saw. Returns the
-/// placed line (the input line when the edge is not significant) and what was measured.
-pub(crate) fn place(
+/// The two half-profiles across `line` (left and right of the principal point), read from
+/// `reach_sky` pixels on its sky side to `reach_ground` on its ground side, and the number of
+/// pixels read.
+fn read_halves(
     frame: &Frame<'_>,
     camera: &Camera,
     line: HorizonLine,
-    search_px: f32,
-    sky_brighter: bool,
-) -> (HorizonLine, Placement) {
+    sc: (f32, f32),
+    along_columns: bool,
+    (reach_sky, reach_ground): (f32, f32),
+) -> ([Profile; 2], u32) {
     let (w, h) = (frame.width(), frame.height());
-    let sc = (
-        libm::sinf(line.camera_roll_rad),
-        libm::cosf(line.camera_roll_rad),
-    );
-    // Walk along the image axis the line is closer to: columns for a flat line.
-    let along_columns = libm::fabsf(sc.1 * camera.fx) >= libm::fabsf(sc.0 * camera.fy);
-    let search_px = search_px.clamp(2.0, HALF_BINS as f32 * BIN_PX - 3.0);
-    let ground_px = (0.5 * search_px).max(3.0);
-    let (reach_sky, reach_ground) = (search_px + 3.0, ground_px + 3.0);
     let (major, minor) = if along_columns { (w, h) } else { (h, w) };
     let centre = if along_columns { camera.cx } else { camera.cy };
     let mut halves = [Profile::EMPTY, Profile::EMPTY];
@@ -500,13 +534,84 @@ pub(crate) fn place(
             total_pixels += 1;
         }
     }
+    (halves, total_pixels)
+}
+
+/// Moves `line` to the full-resolution edge within `search_px` pixels on its sky side (and a
+/// few on its ground side). `sky_brighter`: the polarity the Hough stage saw. Returns the
+/// placed line (the input line when the edge is not significant) and what was measured.
+pub(crate) fn place(
+    frame: &Frame<'_>,
+    camera: &Camera,
+    line: HorizonLine,
+    search_px: f32,
+    sky_brighter: bool,
+) -> (HorizonLine, Placement) {
+    let sc = (
+        libm::sinf(line.camera_roll_rad),
+        libm::cosf(line.camera_roll_rad),
+    );
+    // Walk along the image axis the line is closer to: columns for a flat line.
+    let along_columns = libm::fabsf(sc.1 * camera.fx) >= libm::fabsf(sc.0 * camera.fy);
+    let search_px = search_px.clamp(2.0, HALF_BINS as f32 * BIN_PX - 3.0);
+    let ground_px = (0.5 * search_px).max(3.0);
+    // The top of a hazy transition is looked for only under a sky brighter than the ground:
+    // the airlight a hazy ground comes out of is at most as bright as the sky at the horizon,
+    // and the ground is darker still. The other polarity, walked out this far, climbs the
+    // sky's own glow (synth `haze` at 640 px, whose hazy ground is brighter than the sky).
+    let transition_px = if sky_brighter {
+        (0.5 * (camera.fx + camera.fy) * TRANSITION_TAN)
+            .clamp(search_px, HALF_BINS as f32 * BIN_PX - 3.0)
+    } else {
+        search_px
+    };
+    // The long read, up to `transition_px`, only when the walk to the top of the transition
+    // reaches the end of the short one: most horizons are a step, and the long read costs
+    // as much again as the rest of the placement.
+    let short_px = search_px;
+    let (mut halves, mut total_pixels) = read_halves(
+        frame,
+        camera,
+        line,
+        sc,
+        along_columns,
+        (short_px + 3.0 + SMOOTHING_PX, ground_px + 3.0),
+    );
+    let mut read_px = short_px;
+    let [left, right] = &halves;
+    let first = find_edge(
+        &left.merged(right),
+        search_px,
+        ground_px,
+        transition_px,
+        read_px,
+        sky_brighter,
+    );
+    if transition_px > short_px && first.is_some_and(|e| e.walk_reached_read_end) {
+        (halves, total_pixels) = read_halves(
+            frame,
+            camera,
+            line,
+            sc,
+            along_columns,
+            (transition_px + 3.0, ground_px + 3.0),
+        );
+        read_px = transition_px;
+    }
     let [left, right] = halves;
     let both = left.merged(&right);
     let mut placement = Placement {
         pixels: total_pixels,
         ..Placement::default()
     };
-    let Some(whole) = find_edge(&both, search_px, ground_px, sky_brighter) else {
+    let Some(whole) = find_edge(
+        &both,
+        search_px,
+        ground_px,
+        transition_px,
+        read_px,
+        sky_brighter,
+    ) else {
         return (line, placement);
     };
     placement.step = whole.step * if sky_brighter { 1.0 } else { -1.0 };
@@ -540,7 +645,14 @@ pub(crate) fn place(
         if p.columns < 8 {
             return None;
         }
-        let e = find_edge(p, search_px, ground_px, sky_brighter)?;
+        let e = find_edge(
+            p,
+            search_px,
+            ground_px,
+            transition_px,
+            read_px,
+            sky_brighter,
+        )?;
         if e.significance < MIN_SIGNIFICANCE || libm::fabsf(e.offset_px - whole.offset_px) > 3.0 {
             return None;
         }

@@ -864,12 +864,7 @@ fn a_ramp_steeper_than_the_step_does_not_pull_the_line_down() {
     }
 }
 
-/// The placement's reach (session 7): main reads these 0.9–2.4° low at 320 px. The change
-/// that read them within 1° (placement walking up to tan 5° above the coarse line) was
-/// reverted because it undid `region::top_step` on `synth` `low-light` (the bench's
-/// `dusk_haze_is_read_at_the_top_of_its_ridge`); see docs/horizon.md, "Not done".
 #[test]
-#[ignore = "the placement's longer reach was reverted (docs/horizon.md, Not done)"]
 fn thick_haze_ramp_deeper_than_the_placement_search_at_320() {
     // A thicker haze (k = 0.07: the ramp's steepest part 2° below the horizon, where the
     // binned Hough line lands) under a step of 6–10 levels, with sensor noise. At 320 px the
