@@ -561,12 +561,33 @@ impl HorizonDetector {
         // points it scatters. Only on such frames, so that it costs nothing on the others.
         let mut from_region = false;
         let hough_best = best_of(&scored, |_| true);
-        if hough_best.is_none_or(|b| b.explained < REGION_TRIGGER)
-            && let Some(line) = region::search(samples, libm::sqrtf(max_radius2))
-        {
+        // Also when the best edge line is drawn along only part of its length and splits
+        // the frame less than clearly: under a video link's blocks the edges follow the
+        // haze's lower edge, degrees of roll off the horizon (`synth` `video-link` at 320 px,
+        // 5–13°), while the frame's two regions still meet at the horizon. Then only nearby
+        // directions are searched, and a line that splits the frame clearly replaces the
+        // edge line. Not under a family of parallel candidates: those are interference's
+        // crests, whose compromise lines a nearby split only joins (they go to `stripes`
+        // below).
+        let extent = libm::sqrtf(max_radius2);
+        let found = match hough_best {
+            Some(b) if b.explained >= REGION_TRIGGER => {
+                if b.explained < REGION_RECHECK
+                    && b.coverage < REGION_RECHECK_COVERAGE
+                    && stripe_family(&scored, rho.step).is_none()
+                {
+                    region::search_near(samples, extent, b.line)
+                        .map(|line| (line, REGION_RECHECK_MARGIN))
+                } else {
+                    None
+                }
+            }
+            _ => region::search(samples, extent).map(|line| (line, REGION_MARGIN)),
+        };
+        if let Some((line, margin)) = found {
             let separation = hough::separation(samples, line, 2.0 * rho.step);
             if separation.explained >= MIN_EXPLAINED
-                && hough_best.is_none_or(|b| separation.explained > REGION_MARGIN * b.explained)
+                && hough_best.is_none_or(|b| separation.explained > margin * b.explained)
             {
                 scored = [None; MAX_CANDIDATES];
                 if let Some(slot) = scored.first_mut() {
@@ -717,24 +738,28 @@ impl HorizonDetector {
         }
         // An edge line can lie on the ground's flank of the same ridge: the ramp under a
         // thick haze is steeper at the working resolution than the small step above it
-        // (`synth` `low-light` at 320 px was read 8° low). When the transition walk above
-        // the line finds a clear step more than two working pixels up, the top step is
-        // looked for, and taken only above the line, with the two halves agreeing on it and
+        // (`synth` `low-light` at 320 px was read 8° low). The top step is taken only more
+        // than two working pixels above the line, with the two halves agreeing on it and
         // the profile falling all the way from it down to the line (one transition: a cloud's
-        // lower edge or a bar above a real horizon has darker sky under it).
+        // lower edge or a bar above a real horizon has darker sky under it), and keeping most
+        // of the line's split ([`TOP_STEP_KEEPS_SPLIT`]). It is looked for wherever the
+        // profile keeps rising above the line's own transition, whatever the transition walk
+        // saw there: in dim light the walk's clear-step test (six times the bin noise) misses
+        // a step that the top step's directional means find (`low-light` seed 1 at 320 px,
+        // frames 0 and 2, were read 5° low, one of them confidently). A line the search
+        // climbed to from a ground edge may still be on the ramp (`low-light` 640 px, 4–7°
+        // low from frame 26 of seed 1 on).
         if !from_region
-            && !climbed
             && sky_brighter
-            && profile.top_of_transition().is_some_and(|top| {
-                libm::fabsf(top.rho - chosen.line.rho) > TOP_AMBIGUITY * rho.step
-            })
+            && profile.rises_above()
             && let Some(top) = region::top_step(ws.grey, geo, &camera, chosen.line, rho.step, 1.0)
             && top.halves_agree
             && top.one_transition
             && top.sky_ward_px > TOP_AMBIGUITY
         {
             let separation = hough::separation(samples, top.line, 2.0 * rho.step);
-            if separation.explained >= MIN_EXPLAINED {
+            if separation.explained >= (TOP_STEP_KEEPS_SPLIT * chosen.explained).max(MIN_EXPLAINED)
+            {
                 let upper = Scored::new(top.line, true, separation, chosen.coverage);
                 chosen = Scored {
                     continues_track: self.continues_track(&upper.horizon),
@@ -1098,10 +1123,23 @@ const TOP_AMBIGUITY: f32 = 2.0;
 /// lines: 3).
 const TOP_STEP_SIGNIFICANCE_SPAN: f32 = 6.0;
 
+/// An edge line moved to the top step above it must keep this share of the variance it
+/// explained: below a thick ramp a split mid-ramp explains a little more than the ridge's top
+/// (`synth` `low-light` 640: 0.94 of it), the top of a bright stripe above a real horizon far
+/// less (`white-stripes`: 0.66).
+const TOP_STEP_KEEPS_SPLIT: f32 = 0.85;
+
 /// The region search runs when no edge line explains this share of the frame's variance ...
 const REGION_TRIGGER: f32 = 0.3;
 /// ... and its line replaces them when it explains this many times more than the best.
 const REGION_MARGIN: f32 = 1.5;
+/// The region search also runs, near the best edge line's direction, when that line explains
+/// less than this share and is drawn along less than [`REGION_RECHECK_COVERAGE`] of its
+/// length ...
+const REGION_RECHECK: f32 = 0.75;
+const REGION_RECHECK_COVERAGE: f32 = 0.8;
+/// ... and its line replaces the edge lines when it explains this many times more.
+const REGION_RECHECK_MARGIN: f32 = 1.15;
 /// Most confidence a line found by regions gets (its edges are not what drew it).
 const REGION_CONFIDENCE: f32 = 0.8;
 /// A region line is not drawn by edges: it counts as covered along its length, so that its

@@ -250,6 +250,42 @@ impl Profile {
         Some((contrast, contrast / error))
     }
 
+    /// Walking sky-ward from bin `start` while the profile (sky side up) does not fall back
+    /// by [`TRANSITION_FALL`] of what it rose: the last bin of that transition, and how far
+    /// it rose.
+    fn transition_from(&self, start: usize) -> Option<(usize, f32)> {
+        let polarity = if self.sky_ward > 0.0 { 1.0 } else { -1.0 };
+        let value = |i: usize| {
+            self.bins
+                .get(i)
+                .filter(|b| b.n >= 8.0)
+                .map(|b| polarity * b.mean())
+        };
+        let first = value(start)?;
+        let mut high = first;
+        let mut end = start;
+        while end < BELOW + self.reach {
+            let Some(v) = value(end + 1) else {
+                break;
+            };
+            high = high.max(v);
+            if v < high - (TRANSITION_FALL * (high - first)).max(MIN_STEP_LEVELS) {
+                break;
+            }
+            end += 1;
+        }
+        Some((end, high - first))
+    }
+
+    /// Whether the profile keeps rising above the chosen line's own transition (past its
+    /// first [`CLEAR_OF_CHOSEN`]` / 2` bins) by a step's worth ([`MIN_STEP_LEVELS`]): the line
+    /// lies on a ramp, and the horizon may be at its top. Above a horizon's step the sky is
+    /// level or darkens away from its glow.
+    pub(crate) fn rises_above(&self) -> bool {
+        self.transition_from(BELOW + CLEAR_OF_CHOSEN / 2)
+            .is_some_and(|(_, rise)| rise >= MIN_STEP_LEVELS)
+    }
+
     /// Whether the sky side is striped: clear steps of alternating polarity, at least
     /// [`STRIPE_ALTERNATIONS`] changes. A periodic pattern nearly parallel to the horizon
     /// (interference) puts its crests next to the horizon, where they out-explain it and
@@ -286,27 +322,8 @@ impl Profile {
     /// clear step of the sky's polarity with at least [`TOP_SHARE`] of the walk's largest.
     /// `None` when there is none above the line.
     pub(crate) fn top_of_transition(&self) -> Option<Line> {
-        let polarity = if self.sky_ward > 0.0 { 1.0 } else { -1.0 };
-        let value = |i: usize| {
-            self.bins
-                .get(i)
-                .filter(|b| b.n >= 8.0)
-                .map(|b| polarity * b.mean())
-        };
-        let start = value(BELOW)?;
-        let mut high = start;
-        let mut end = BELOW;
+        let (end, _) = self.transition_from(BELOW)?;
         let mut largest = 0.0f32;
-        while end < BELOW + self.reach {
-            let Some(v) = value(end + 1) else {
-                break;
-            };
-            high = high.max(v);
-            if v < high - (TRANSITION_FALL * (high - start)).max(MIN_STEP_LEVELS) {
-                break;
-            }
-            end += 1;
-        }
         let clear = |k: usize| {
             self.step_at(k).filter(|&(contrast, significance)| {
                 contrast >= MIN_STEP_LEVELS && significance >= MIN_STEP_SIGNIFICANCE
