@@ -12,9 +12,18 @@ pub const ANGLE_BINS: usize = 360;
 pub(crate) const ANGLE_STEP: f32 = 2.0 * core::f32::consts::PI / ANGLE_BINS as f32;
 
 /// Wraps an angle to (−π, π].
+#[inline]
 pub(crate) fn wrap_angle(a: f32) -> f32 {
     use core::f32::consts::PI;
-    let mut a = libm::fmodf(a + PI, 2.0 * PI);
+    let shifted = a + PI;
+    // `fmodf` returns an argument smaller than the divisor in magnitude as it is, which is
+    // nearly every angle here (differences of two wrapped angles); the call is left for the
+    // rest (and NaN).
+    let mut a = if libm::fabsf(shifted) < 2.0 * PI {
+        shifted
+    } else {
+        libm::fmodf(shifted, 2.0 * PI)
+    };
     if a < 0.0 {
         a += 2.0 * PI;
     }
