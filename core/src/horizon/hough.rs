@@ -106,15 +106,36 @@ pub(crate) fn vote(
     window: usize,
     accumulator: &mut [u16],
 ) {
-    let bins = rho.bins();
     accumulator.fill(0);
+    // A point votes once in each of its window's angle bins, so no cell gets more votes than
+    // there are points: below 65535 points (the workspace holds 16 per working pixel of
+    // perimeter) the saturating add is never needed, and the loop is compiled without it.
+    if edges.len() < usize::from(u16::MAX) {
+        vote_points::<false>(edges, tables, rho, window, accumulator);
+    } else {
+        vote_points::<true>(edges, tables, rho, window, accumulator);
+    }
+}
+
+fn vote_points<const SATURATING: bool>(
+    edges: &[EdgePoint],
+    tables: &Tables,
+    rho: RhoAxis,
+    window: usize,
+    accumulator: &mut [u16],
+) {
+    let bins = rho.bins();
     let inverse_step = 1.0 / rho.step;
     let offset = rho.half as f32 + 0.5;
     let window = window.min(ANGLE_BINS / 4);
     let limit = (bins - 1) as f32;
     let mut increment = |index: usize| {
         if let Some(cell) = accumulator.get_mut(index) {
-            *cell = cell.saturating_add(1);
+            *cell = if SATURATING {
+                cell.saturating_add(1)
+            } else {
+                cell.wrapping_add(1)
+            };
         }
     };
     let mut vote_at = |bin: usize, s: f32, c: f32, point: &EdgePoint| {
