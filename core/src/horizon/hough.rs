@@ -129,24 +129,6 @@ fn vote_points<const SATURATING: bool>(
     let offset = rho.half as f32 + 0.5;
     let window = window.min(ANGLE_BINS / 4);
     let limit = (bins - 1) as f32;
-    let mut increment = |index: usize| {
-        if let Some(cell) = accumulator.get_mut(index) {
-            *cell = if SATURATING {
-                cell.saturating_add(1)
-            } else {
-                cell.wrapping_add(1)
-            };
-        }
-    };
-    let mut vote_at = |bin: usize, s: f32, c: f32, point: &EdgePoint| {
-        let f = (point.x * s + point.y * c) * inverse_step + offset;
-        // `f` in [0, bins): NaN fails the test too.
-        if f >= 0.0 && f < limit + 1.0 {
-            // Through i32: the same whole part of an `f` in range, in half the instructions of
-            // the saturating conversion to a 64-bit index.
-            increment(bin * bins + f as i32 as usize);
-        }
-    };
     for point in edges {
         let centre = angle_bin(point.normal_angle);
         let (lo, hi) = (centre + ANGLE_BINS - window, centre + ANGLE_BINS + window);
@@ -154,14 +136,49 @@ fn vote_points<const SATURATING: bool>(
             // The window does not wrap (all but 2·window of the 360 bins): one contiguous run
             // of the tables, no modulo per vote (the vote loop is most of the Hough stage).
             let range = lo - ANGLE_BINS..=hi - ANGLE_BINS;
-            let (Some(sin), Some(cos)) = (tables.sin.get(range.clone()), tables.cos.get(range))
-            else {
+            let cells = (lo - ANGLE_BINS) * bins..(hi - ANGLE_BINS + 1) * bins;
+            let (Some(sin), Some(cos), Some(rows)) = (
+                tables.sin.get(range.clone()),
+                tables.cos.get(range),
+                accumulator.get_mut(cells),
+            ) else {
                 continue;
             };
-            for (k, (&s, &c)) in sin.iter().zip(cos).enumerate() {
-                vote_at(lo - ANGLE_BINS + k, s, c, point);
+            // Row by row of the window's angle bins: the cell's index is its rho bin, whose
+            // bounds test is the `f < bins` of the general case (for `f` ≥ 0, the whole part
+            // is below `bins` exactly when `f` is).
+            for ((row, &s), &c) in rows.chunks_exact_mut(bins).zip(sin).zip(cos) {
+                let f = (point.x * s + point.y * c) * inverse_step + offset;
+                // NaN fails the test too.
+                if f >= 0.0
+                    && let Some(cell) = row.get_mut(f as i32 as usize)
+                {
+                    *cell = if SATURATING {
+                        cell.saturating_add(1)
+                    } else {
+                        cell.wrapping_add(1)
+                    };
+                }
             }
         } else {
+            let mut increment = |index: usize| {
+                if let Some(cell) = accumulator.get_mut(index) {
+                    *cell = if SATURATING {
+                        cell.saturating_add(1)
+                    } else {
+                        cell.wrapping_add(1)
+                    };
+                }
+            };
+            let mut vote_at = |bin: usize, s: f32, c: f32, point: &EdgePoint| {
+                let f = (point.x * s + point.y * c) * inverse_step + offset;
+                // `f` in [0, bins): NaN fails the test too.
+                if f >= 0.0 && f < limit + 1.0 {
+                    // Through i32: the same whole part of an `f` in range, in half the instructions of
+                    // the saturating conversion to a 64-bit index.
+                    increment(bin * bins + f as i32 as usize);
+                }
+            };
             for k in lo..=hi {
                 let bin = k % ANGLE_BINS;
                 if let (Some(&s), Some(&c)) = (tables.sin.get(bin), tables.cos.get(bin)) {
