@@ -152,6 +152,21 @@ fn bin_rows(frame: &Frame<'_>, wy: usize, s: usize, colour: bool, out_row: &mut 
 /// Output pixels of [`bin_two_rows`] per pass of its two loops.
 const BIN_RUN: usize = 16;
 
+/// BT.601 luma weights (see `frame::luma`) for each byte of a run of RGB pixels.
+const LUMA_WEIGHTS: [i16; 6 * BIN_RUN] = {
+    let mut weights = [0i16; 6 * BIN_RUN];
+    let mut i = 0;
+    while i < weights.len() {
+        weights[i] = match i % 3 {
+            0 => 77,
+            1 => 150,
+            _ => 29,
+        };
+        i += 1;
+    }
+    weights
+};
+
 /// Luma of 2×2 blocks of two frame rows.
 fn bin_two_rows(top: &[u8], bottom: &[u8], colour: bool, out: &mut [u8]) {
     if colour && top.len() == bottom.len() {
@@ -163,18 +178,28 @@ fn bin_two_rows(top: &[u8], bottom: &[u8], colour: bool, out: &mut [u8]) {
             .zip(top.chunks(6 * BIN_RUN))
             .zip(bottom.chunks(6 * BIN_RUN))
         {
-            let mut sums = [0u16; 6 * BIN_RUN];
+            let mut sums = [0i16; 6 * BIN_RUN];
             for ((s, &t), &b) in sums.iter_mut().zip(a).zip(b) {
-                *s = u16::from(t) + u16::from(b);
+                *s = i16::from(t) + i16::from(b);
+            }
+            // Each byte's weight, then adjacent pairs of products summed: R·77 + G·150,
+            // B·29 + R·77, G·150 + B·29 for each block (a multiply-add of 16-bit pairs that the
+            // compiler vectorises), and a block's luma is its three pairs: the same integers as
+            // weighting its channel sums.
+            let mut pairs = [0i32; 3 * BIN_RUN];
+            for (p, (s, w)) in pairs
+                .iter_mut()
+                .zip(sums.chunks_exact(2).zip(LUMA_WEIGHTS.chunks_exact(2)))
+            {
+                if let (&[s0, s1], &[w0, w1]) = (s, w) {
+                    *p = i32::from(s0) * i32::from(w0) + i32::from(s1) * i32::from(w1);
+                }
             }
             // Only whole blocks: a partial last run leaves the outputs it has no pixels for.
             let whole = a.len() / 6;
-            for (o, px) in o.iter_mut().take(whole).zip(sums.chunks_exact(6)) {
-                if let &[r0, g0, b0, r1, g1, b1] = px {
-                    let r = u32::from(r0) + u32::from(r1);
-                    let g = u32::from(g0) + u32::from(g1);
-                    let b = u32::from(b0) + u32::from(b1);
-                    *o = ((77 * r + 150 * g + 29 * b + 512) >> 10) as u8;
+            for (o, p) in o.iter_mut().take(whole).zip(pairs.chunks_exact(3)) {
+                if let &[p0, p1, p2] = p {
+                    *o = ((p0 + p1 + p2 + 512) >> 10) as u8;
                 }
             }
         }
