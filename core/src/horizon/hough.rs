@@ -334,6 +334,9 @@ impl Line {
     }
 }
 
+/// Edge points whose distances [`refine`] tests at once.
+const REFINE_BLOCK: usize = 16;
+
 /// Refines a Hough line by total least squares on the edge points near it whose direction
 /// agrees, tightening the band each pass. Returns the line and its inlier count, or `None`
 /// when too few points support it to fit.
@@ -350,21 +353,32 @@ pub(crate) fn refine(
         // Sums relative to the foot of the normal, so f32 keeps its precision.
         let (ox, oy) = (nx * line.rho, ny * line.rho);
         let (mut n, mut sx, mut sy, mut sxx, mut sxy, mut syy) = (0usize, 0.0, 0.0, 0.0, 0.0, 0.0);
-        for p in edges {
-            let distance = p.x * nx + p.y * ny - line.rho;
-            if libm::fabsf(distance) > band {
-                continue;
+        // The points within the band, taken in order from a bit mask per block (a NaN
+        // distance is within it, as `|distance| > band` does not hold): the distances of a
+        // block in one vectorised pass, and no per-point test the processor mispredicts.
+        for block in edges.chunks(REFINE_BLOCK) {
+            let mut near = block.iter().enumerate().fold(0u32, |mask, (i, p)| {
+                let distance = p.x * nx + p.y * ny - line.rho;
+                let kept = !(libm::fabsf(distance) > band);
+                mask | (u32::from(kept) << i)
+            });
+            while near != 0 {
+                let i = near.trailing_zeros() as usize;
+                near &= near - 1;
+                let Some(p) = block.get(i) else {
+                    continue;
+                };
+                if libm::fabsf(wrap_angle(p.normal_angle - line.angle)) > max_angle_difference {
+                    continue;
+                }
+                let (dx, dy) = (p.x - ox, p.y - oy);
+                n += 1;
+                sx += dx;
+                sy += dy;
+                sxx += dx * dx;
+                sxy += dx * dy;
+                syy += dy * dy;
             }
-            if libm::fabsf(wrap_angle(p.normal_angle - line.angle)) > max_angle_difference {
-                continue;
-            }
-            let (dx, dy) = (p.x - ox, p.y - oy);
-            n += 1;
-            sx += dx;
-            sy += dy;
-            sxx += dx * dx;
-            sxy += dx * dy;
-            syy += dy * dy;
         }
         if n < 8 {
             return None;
