@@ -471,48 +471,76 @@ pub(crate) fn collect_edges(
         // above it): a block with none above it is passed over with one vectorised test.
         // Within a block, the pixels above it are taken from a bit mask in their order, not
         // by a test per pixel whose outcome the processor cannot guess.
+        let neighbour_rows: [&[u16]; 3] = [above, at, below];
+        // Non-maximum suppression at pixel `x` along its gradient, quantised to 8 directions
+        // (tan 22.5° ≈ 0.4142 ≈ 53/128): its magnitude, gradient, step along the gradient and
+        // the magnitudes a step forward and back. The direction is chosen by selects, not
+        // branches: it is as unpredictable as the gradient.
+        let suppression = |x: usize, m: u16| {
+            let component = |row: &[u16]| row.get(x).map_or(0, |&g| i32::from(g as i16));
+            let (gx, gy) = (component(gx_row), component(gy_row));
+            let (ax, ay) = (gx.abs() * 128, gy.abs() * 128);
+            let along_x = ay <= gx.abs() * 53;
+            let along_y = !along_x && ax <= gy.abs() * 53;
+            let rising = (gx > 0) == (gy > 0);
+            let dx = isize::from(!along_y);
+            let dy: isize = if along_x {
+                0
+            } else if along_y || rising {
+                1
+            } else {
+                -1
+            };
+            let neighbour = |dx: isize, dy: isize| -> i32 {
+                neighbour_rows
+                    .get(dy.wrapping_add(1) as usize)
+                    .and_then(|row| x.checked_add_signed(dx).and_then(|xx| row.get(xx)))
+                    .map_or(0, |&v| i32::from(v))
+            };
+            Ridge {
+                m: i32::from(m),
+                gx,
+                gy,
+                dx,
+                dy,
+                forward: neighbour(dx, dy),
+                backward: neighbour(-dx, -dy),
+            }
+        };
         for (block_index, block) in at.chunks(EDGE_BLOCK).enumerate() {
-            let mut strong = block
+            let strong = block
                 .iter()
                 .enumerate()
                 .fold(0u32, |mask, (i, &m)| mask | (u32::from(m >= threshold) << i));
-            while strong != 0 {
-                let i = strong.trailing_zeros() as usize;
-                strong &= strong - 1;
+            // First which of them are ridges (a mask again: whether a pixel survives the
+            // suppression is a coin toss to the processor), then the points of those.
+            let mut ridges = 0u32;
+            let mut remaining = strong;
+            while remaining != 0 {
+                let i = remaining.trailing_zeros() as usize;
+                remaining &= remaining - 1;
+                let Some(&m) = block.get(i) else {
+                    continue;
+                };
+                let r = suppression(block_index * EDGE_BLOCK + i, m);
+                ridges |= u32::from(r.m >= r.forward && r.m > r.backward) << i;
+            }
+            while ridges != 0 {
+                let i = ridges.trailing_zeros() as usize;
+                ridges &= ridges - 1;
                 let Some(&m) = block.get(i) else {
                     continue;
                 };
                 let x = block_index * EDGE_BLOCK + i;
-                let component = |row: &[u16]| row.get(x).map_or(0, |&g| i32::from(g as i16));
-                let (gx, gy) = (component(gx_row), component(gy_row));
-                // Non-maximum suppression along the gradient, quantised to 8 directions
-                // (tan 22.5° ≈ 0.4142 ≈ 53/128).
-                let (ax, ay) = (gx.abs() * 128, gy.abs() * 128);
-                let (dx, dy): (isize, isize) = if ay <= gx.abs() * 53 {
-                    (1, 0)
-                } else if ax <= gy.abs() * 53 {
-                    (0, 1)
-                } else if (gx > 0) == (gy > 0) {
-                    (1, 1)
-                } else {
-                    (1, -1)
-                };
-                let neighbour = |dx: isize, dy: isize| -> i32 {
-                    let row: &[u16] = match dy {
-                        -1 => above,
-                        0 => at,
-                        _ => below,
-                    };
-                    x.checked_add_signed(dx)
-                        .and_then(|xx| row.get(xx))
-                        .map_or(0, |&v| i32::from(v))
-                };
-                let forward = neighbour(dx, dy);
-                let backward = neighbour(-dx, -dy);
-                let m = i32::from(m);
-                if m < forward || m <= backward {
-                    continue;
-                }
+                let Ridge {
+                    m,
+                    gx,
+                    gy,
+                    dx,
+                    dy,
+                    forward,
+                    backward,
+                } = suppression(x, m);
                 // Sub-pixel position of the ridge along the gradient (parabola through the
                 // three).
                 let curvature = backward - 2 * m + forward;
@@ -538,6 +566,17 @@ pub(crate) fn collect_edges(
         gys.rotate_left(1);
     }
     stats
+}
+
+/// A pixel's non-maximum suppression in [`collect_edges`].
+struct Ridge {
+    m: i32,
+    gx: i32,
+    gy: i32,
+    dx: isize,
+    dy: isize,
+    forward: i32,
+    backward: i32,
 }
 
 /// Working rows of scratch [`collect_edges`] needs: magnitude, `gx` and `gy` of three rows.
