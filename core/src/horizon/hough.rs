@@ -353,13 +353,15 @@ pub(crate) fn refine(
         // Sums relative to the foot of the normal, so f32 keeps its precision.
         let (ox, oy) = (nx * line.rho, ny * line.rho);
         let (mut n, mut sx, mut sy, mut sxx, mut sxy, mut syy) = (0usize, 0.0, 0.0, 0.0, 0.0, 0.0);
-        // The points within the band, taken in order from a bit mask per block (a NaN
-        // distance is within it, as `|distance| > band` does not hold): the distances of a
-        // block in one vectorised pass, and no per-point test the processor mispredicts.
+        // The points within the band, taken in order from a bit mask per block: the
+        // distances of a block in one vectorised pass, and no per-point test the processor
+        // mispredicts. A point is outside only when `|distance| > band` holds: a NaN
+        // distance is within, and a NaN band holds every point.
+        let band = if band.is_nan() { f32::INFINITY } else { band };
         for block in edges.chunks(REFINE_BLOCK) {
             let mut near = block.iter().enumerate().fold(0u32, |mask, (i, p)| {
                 let distance = p.x * nx + p.y * ny - line.rho;
-                let kept = !(libm::fabsf(distance) > band);
+                let kept = libm::fabsf(distance) <= band || distance.is_nan();
                 mask | (u32::from(kept) << i)
             });
             while near != 0 {
