@@ -467,15 +467,11 @@ pub(crate) fn collect_edges(
         let [above, at, below] = &mags;
         let [_, gx_row, _] = &gxs;
         let [_, gy_row, _] = &gys;
-        // Most of a row is under the threshold (the budget keeps a few percent of the pixels
-        // above it): a block with none above it is passed over with one vectorised test.
-        // Within a block, the pixels above it are taken from a bit mask in their order, not
-        // by a test per pixel whose outcome the processor cannot guess.
         let neighbour_rows: [&[u16]; 3] = [above, at, below];
         // Non-maximum suppression at pixel `x` along its gradient, quantised to 8 directions
         // (tan 22.5° ≈ 0.4142 ≈ 53/128): its magnitude, gradient, step along the gradient and
-        // the magnitudes a step forward and back. The direction is chosen by selects, not
-        // branches: it is as unpredictable as the gradient.
+        // the magnitudes a step forward and back. The direction is written as selects rather
+        // than an early-out chain: it is as unpredictable as the gradient.
         let suppression = |x: usize, m: u16| {
             let component = |row: &[u16]| row.get(x).map_or(0, |&g| i32::from(g as i16));
             let (gx, gy) = (component(gx_row), component(gy_row));
@@ -507,11 +503,14 @@ pub(crate) fn collect_edges(
                 backward: neighbour(-dx, -dy),
             }
         };
+        // Most of a row is under the threshold (the budget keeps a few percent of the pixels
+        // above it). A block's pixels above it are a bit mask made in one vectorised pass and
+        // taken in their order, not a test per pixel whose outcome the processor cannot guess
+        // (an empty mask passes the block over).
         for (block_index, block) in at.chunks(EDGE_BLOCK).enumerate() {
-            let strong = block
-                .iter()
-                .enumerate()
-                .fold(0u32, |mask, (i, &m)| mask | (u32::from(m >= threshold) << i));
+            let strong = block.iter().enumerate().fold(0u32, |mask, (i, &m)| {
+                mask | (u32::from(m >= threshold) << i)
+            });
             // First which of them are ridges (a mask again: whether a pixel survives the
             // suppression is a coin toss to the processor), then the points of those.
             let mut ridges = 0u32;
