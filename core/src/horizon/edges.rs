@@ -152,6 +152,21 @@ fn bin_rows(frame: &Frame<'_>, wy: usize, s: usize, colour: bool, out_row: &mut 
 /// Output pixels of [`bin_two_rows`] per pass of its two loops.
 const BIN_RUN: usize = 16;
 
+/// BT.601 luma weights (see `frame::luma`) for each byte of a run of RGB pixels.
+const LUMA_WEIGHTS: [i16; 6 * BIN_RUN] = {
+    let mut weights = [0i16; 6 * BIN_RUN];
+    let mut i = 0;
+    while i < weights.len() {
+        weights[i] = match i % 3 {
+            0 => 77,
+            1 => 150,
+            _ => 29,
+        };
+        i += 1;
+    }
+    weights
+};
+
 /// Luma of 2×2 blocks of two frame rows.
 fn bin_two_rows(top: &[u8], bottom: &[u8], colour: bool, out: &mut [u8]) {
     if colour && top.len() == bottom.len() {
@@ -163,18 +178,28 @@ fn bin_two_rows(top: &[u8], bottom: &[u8], colour: bool, out: &mut [u8]) {
             .zip(top.chunks(6 * BIN_RUN))
             .zip(bottom.chunks(6 * BIN_RUN))
         {
-            let mut sums = [0u16; 6 * BIN_RUN];
+            let mut sums = [0i16; 6 * BIN_RUN];
             for ((s, &t), &b) in sums.iter_mut().zip(a).zip(b) {
-                *s = u16::from(t) + u16::from(b);
+                *s = i16::from(t) + i16::from(b);
+            }
+            // Each byte's weight, then adjacent pairs of products summed: R·77 + G·150,
+            // B·29 + R·77, G·150 + B·29 for each block (a multiply-add of 16-bit pairs that the
+            // compiler vectorises), and a block's luma is its three pairs: the same integers as
+            // weighting its channel sums.
+            let mut pairs = [0i32; 3 * BIN_RUN];
+            for (p, (s, w)) in pairs
+                .iter_mut()
+                .zip(sums.chunks_exact(2).zip(LUMA_WEIGHTS.chunks_exact(2)))
+            {
+                if let (&[s0, s1], &[w0, w1]) = (s, w) {
+                    *p = i32::from(s0) * i32::from(w0) + i32::from(s1) * i32::from(w1);
+                }
             }
             // Only whole blocks: a partial last run leaves the outputs it has no pixels for.
             let whole = a.len() / 6;
-            for (o, px) in o.iter_mut().take(whole).zip(sums.chunks_exact(6)) {
-                if let &[r0, g0, b0, r1, g1, b1] = px {
-                    let r = u32::from(r0) + u32::from(r1);
-                    let g = u32::from(g0) + u32::from(g1);
-                    let b = u32::from(b0) + u32::from(b1);
-                    *o = ((77 * r + 150 * g + 29 * b + 512) >> 10) as u8;
+            for (o, p) in o.iter_mut().take(whole).zip(pairs.chunks_exact(3)) {
+                if let &[p0, p1, p2] = p {
+                    *o = ((p0 + p1 + p2 + 512) >> 10) as u8;
                 }
             }
         }
@@ -442,47 +467,79 @@ pub(crate) fn collect_edges(
         let [above, at, below] = &mags;
         let [_, gx_row, _] = &gxs;
         let [_, gy_row, _] = &gys;
-        // Most of a row is under the threshold (the budget keeps a few percent of the pixels
-        // above it): a block with none above it is passed over with one vectorised test.
-        for (block_index, block) in at.chunks(EDGE_BLOCK).enumerate() {
-            if !block.iter().fold(false, |any, &m| any | (m >= threshold)) {
-                continue;
+        let neighbour_rows: [&[u16]; 3] = [above, at, below];
+        // Non-maximum suppression at pixel `x` along its gradient, quantised to 8 directions
+        // (tan 22.5° ≈ 0.4142 ≈ 53/128): its magnitude, gradient, step along the gradient and
+        // the magnitudes a step forward and back. The direction is written as selects rather
+        // than an early-out chain: it is as unpredictable as the gradient.
+        let suppression = |x: usize, m: u16| {
+            let component = |row: &[u16]| row.get(x).map_or(0, |&g| i32::from(g as i16));
+            let (gx, gy) = (component(gx_row), component(gy_row));
+            let (ax, ay) = (gx.abs() * 128, gy.abs() * 128);
+            let along_x = ay <= gx.abs() * 53;
+            let along_y = !along_x && ax <= gy.abs() * 53;
+            let rising = (gx > 0) == (gy > 0);
+            let dx = isize::from(!along_y);
+            let dy: isize = if along_x {
+                0
+            } else if along_y || rising {
+                1
+            } else {
+                -1
+            };
+            let neighbour = |dx: isize, dy: isize| -> i32 {
+                neighbour_rows
+                    .get(dy.wrapping_add(1) as usize)
+                    .and_then(|row| x.checked_add_signed(dx).and_then(|xx| row.get(xx)))
+                    .map_or(0, |&v| i32::from(v))
+            };
+            Ridge {
+                m: i32::from(m),
+                gx,
+                gy,
+                dx,
+                dy,
+                forward: neighbour(dx, dy),
+                backward: neighbour(-dx, -dy),
             }
-            for (i, &m) in block.iter().enumerate() {
-                if m < threshold {
+        };
+        // Most of a row is under the threshold (the budget keeps a few percent of the pixels
+        // above it). A block's pixels above it are a bit mask made in one vectorised pass and
+        // taken in their order, not a test per pixel whose outcome the processor cannot guess
+        // (an empty mask passes the block over).
+        for (block_index, block) in at.chunks(EDGE_BLOCK).enumerate() {
+            let strong = block.iter().enumerate().fold(0u32, |mask, (i, &m)| {
+                mask | (u32::from(m >= threshold) << i)
+            });
+            // First which of them are ridges (a mask again: whether a pixel survives the
+            // suppression is a coin toss to the processor), then the points of those.
+            let mut ridges = 0u32;
+            let mut remaining = strong;
+            while remaining != 0 {
+                let i = remaining.trailing_zeros() as usize;
+                remaining &= remaining - 1;
+                let Some(&m) = block.get(i) else {
                     continue;
-                }
+                };
+                let r = suppression(block_index * EDGE_BLOCK + i, m);
+                ridges |= u32::from(r.m >= r.forward && r.m > r.backward) << i;
+            }
+            while ridges != 0 {
+                let i = ridges.trailing_zeros() as usize;
+                ridges &= ridges - 1;
+                let Some(&m) = block.get(i) else {
+                    continue;
+                };
                 let x = block_index * EDGE_BLOCK + i;
-                let component = |row: &[u16]| row.get(x).map_or(0, |&g| i32::from(g as i16));
-                let (gx, gy) = (component(gx_row), component(gy_row));
-                // Non-maximum suppression along the gradient, quantised to 8 directions
-                // (tan 22.5° ≈ 0.4142 ≈ 53/128).
-                let (ax, ay) = (gx.abs() * 128, gy.abs() * 128);
-                let (dx, dy): (isize, isize) = if ay <= gx.abs() * 53 {
-                    (1, 0)
-                } else if ax <= gy.abs() * 53 {
-                    (0, 1)
-                } else if (gx > 0) == (gy > 0) {
-                    (1, 1)
-                } else {
-                    (1, -1)
-                };
-                let neighbour = |dx: isize, dy: isize| -> i32 {
-                    let row: &[u16] = match dy {
-                        -1 => above,
-                        0 => at,
-                        _ => below,
-                    };
-                    x.checked_add_signed(dx)
-                        .and_then(|xx| row.get(xx))
-                        .map_or(0, |&v| i32::from(v))
-                };
-                let forward = neighbour(dx, dy);
-                let backward = neighbour(-dx, -dy);
-                let m = i32::from(m);
-                if m < forward || m <= backward {
-                    continue;
-                }
+                let Ridge {
+                    m,
+                    gx,
+                    gy,
+                    dx,
+                    dy,
+                    forward,
+                    backward,
+                } = suppression(x, m);
                 // Sub-pixel position of the ridge along the gradient (parabola through the
                 // three).
                 let curvature = backward - 2 * m + forward;
@@ -508,6 +565,17 @@ pub(crate) fn collect_edges(
         gys.rotate_left(1);
     }
     stats
+}
+
+/// A pixel's non-maximum suppression in [`collect_edges`].
+struct Ridge {
+    m: i32,
+    gx: i32,
+    gy: i32,
+    dx: isize,
+    dy: isize,
+    forward: i32,
+    backward: i32,
 }
 
 /// Working rows of scratch [`collect_edges`] needs: magnitude, `gx` and `gy` of three rows.

@@ -12,9 +12,18 @@ pub const ANGLE_BINS: usize = 360;
 pub(crate) const ANGLE_STEP: f32 = 2.0 * core::f32::consts::PI / ANGLE_BINS as f32;
 
 /// Wraps an angle to (−π, π].
+#[inline]
 pub(crate) fn wrap_angle(a: f32) -> f32 {
     use core::f32::consts::PI;
-    let mut a = libm::fmodf(a + PI, 2.0 * PI);
+    let shifted = a + PI;
+    // `fmodf` returns an argument smaller than the divisor in magnitude as it is, which is
+    // nearly every angle here (differences of two wrapped angles); the call is left for the
+    // rest (and NaN).
+    let mut a = if libm::fabsf(shifted) < 2.0 * PI {
+        shifted
+    } else {
+        libm::fmodf(shifted, 2.0 * PI)
+    };
     if a < 0.0 {
         a += 2.0 * PI;
     }
@@ -97,26 +106,29 @@ pub(crate) fn vote(
     window: usize,
     accumulator: &mut [u16],
 ) {
-    let bins = rho.bins();
     accumulator.fill(0);
+    // A point votes once in each of its window's angle bins, so no cell gets more votes than
+    // there are points: below 65535 points (the workspace holds 16 per working pixel of
+    // perimeter) the saturating add is never needed, and the loop is compiled without it.
+    if edges.len() < usize::from(u16::MAX) {
+        vote_points::<false>(edges, tables, rho, window, accumulator);
+    } else {
+        vote_points::<true>(edges, tables, rho, window, accumulator);
+    }
+}
+
+fn vote_points<const SATURATING: bool>(
+    edges: &[EdgePoint],
+    tables: &Tables,
+    rho: RhoAxis,
+    window: usize,
+    accumulator: &mut [u16],
+) {
+    let bins = rho.bins();
     let inverse_step = 1.0 / rho.step;
     let offset = rho.half as f32 + 0.5;
     let window = window.min(ANGLE_BINS / 4);
     let limit = (bins - 1) as f32;
-    let mut increment = |index: usize| {
-        if let Some(cell) = accumulator.get_mut(index) {
-            *cell = cell.saturating_add(1);
-        }
-    };
-    let mut vote_at = |bin: usize, s: f32, c: f32, point: &EdgePoint| {
-        let f = (point.x * s + point.y * c) * inverse_step + offset;
-        // `f` in [0, bins): NaN fails the test too.
-        if f >= 0.0 && f < limit + 1.0 {
-            // Through i32: the same whole part of an `f` in range, in half the instructions of
-            // the saturating conversion to a 64-bit index.
-            increment(bin * bins + f as i32 as usize);
-        }
-    };
     for point in edges {
         let centre = angle_bin(point.normal_angle);
         let (lo, hi) = (centre + ANGLE_BINS - window, centre + ANGLE_BINS + window);
@@ -124,14 +136,49 @@ pub(crate) fn vote(
             // The window does not wrap (all but 2·window of the 360 bins): one contiguous run
             // of the tables, no modulo per vote (the vote loop is most of the Hough stage).
             let range = lo - ANGLE_BINS..=hi - ANGLE_BINS;
-            let (Some(sin), Some(cos)) = (tables.sin.get(range.clone()), tables.cos.get(range))
-            else {
+            let cells = (lo - ANGLE_BINS) * bins..(hi - ANGLE_BINS + 1) * bins;
+            let (Some(sin), Some(cos), Some(rows)) = (
+                tables.sin.get(range.clone()),
+                tables.cos.get(range),
+                accumulator.get_mut(cells),
+            ) else {
                 continue;
             };
-            for (k, (&s, &c)) in sin.iter().zip(cos).enumerate() {
-                vote_at(lo - ANGLE_BINS + k, s, c, point);
+            // Row by row of the window's angle bins: the cell's index is its rho bin, whose
+            // bounds test is the `f < bins` of the general case (for `f` ≥ 0, the whole part
+            // is below `bins` exactly when `f` is).
+            for ((row, &s), &c) in rows.chunks_exact_mut(bins).zip(sin).zip(cos) {
+                let f = (point.x * s + point.y * c) * inverse_step + offset;
+                // NaN fails the test too.
+                if f >= 0.0
+                    && let Some(cell) = row.get_mut(f as i32 as usize)
+                {
+                    *cell = if SATURATING {
+                        cell.saturating_add(1)
+                    } else {
+                        cell.wrapping_add(1)
+                    };
+                }
             }
         } else {
+            let mut increment = |index: usize| {
+                if let Some(cell) = accumulator.get_mut(index) {
+                    *cell = if SATURATING {
+                        cell.saturating_add(1)
+                    } else {
+                        cell.wrapping_add(1)
+                    };
+                }
+            };
+            let mut vote_at = |bin: usize, s: f32, c: f32, point: &EdgePoint| {
+                let f = (point.x * s + point.y * c) * inverse_step + offset;
+                // `f` in [0, bins): NaN fails the test too.
+                if f >= 0.0 && f < limit + 1.0 {
+                    // Through i32: the same whole part of an `f` in range, in half the instructions of
+                    // the saturating conversion to a 64-bit index.
+                    increment(bin * bins + f as i32 as usize);
+                }
+            };
             for k in lo..=hi {
                 let bin = k % ANGLE_BINS;
                 if let (Some(&s), Some(&c)) = (tables.sin.get(bin), tables.cos.get(bin)) {
@@ -287,6 +334,9 @@ impl Line {
     }
 }
 
+/// Edge points whose distances [`refine`] tests at once.
+const REFINE_BLOCK: usize = 16;
+
 /// Refines a Hough line by total least squares on the edge points near it whose direction
 /// agrees, tightening the band each pass. Returns the line and its inlier count, or `None`
 /// when too few points support it to fit.
@@ -303,21 +353,34 @@ pub(crate) fn refine(
         // Sums relative to the foot of the normal, so f32 keeps its precision.
         let (ox, oy) = (nx * line.rho, ny * line.rho);
         let (mut n, mut sx, mut sy, mut sxx, mut sxy, mut syy) = (0usize, 0.0, 0.0, 0.0, 0.0, 0.0);
-        for p in edges {
-            let distance = p.x * nx + p.y * ny - line.rho;
-            if libm::fabsf(distance) > band {
-                continue;
+        // The points within the band, taken in order from a bit mask per block: the
+        // distances of a block in one vectorised pass, and no per-point test the processor
+        // mispredicts. A point is outside only when `|distance| > band` holds: a NaN
+        // distance is within, and a NaN band holds every point.
+        let band = if band.is_nan() { f32::INFINITY } else { band };
+        for block in edges.chunks(REFINE_BLOCK) {
+            let mut near = block.iter().enumerate().fold(0u32, |mask, (i, p)| {
+                let distance = p.x * nx + p.y * ny - line.rho;
+                let kept = libm::fabsf(distance) <= band || distance.is_nan();
+                mask | (u32::from(kept) << i)
+            });
+            while near != 0 {
+                let i = near.trailing_zeros() as usize;
+                near &= near - 1;
+                let Some(p) = block.get(i) else {
+                    continue;
+                };
+                if libm::fabsf(wrap_angle(p.normal_angle - line.angle)) > max_angle_difference {
+                    continue;
+                }
+                let (dx, dy) = (p.x - ox, p.y - oy);
+                n += 1;
+                sx += dx;
+                sy += dy;
+                sxx += dx * dx;
+                sxy += dx * dy;
+                syy += dy * dy;
             }
-            if libm::fabsf(wrap_angle(p.normal_angle - line.angle)) > max_angle_difference {
-                continue;
-            }
-            let (dx, dy) = (p.x - ox, p.y - oy);
-            n += 1;
-            sx += dx;
-            sy += dy;
-            sxx += dx * dx;
-            sxy += dx * dy;
-            syy += dy * dy;
         }
         if n < 8 {
             return None;

@@ -408,13 +408,23 @@ impl HorizonDetector {
         edges::build_working_image(frame, base, ws.grey);
         let mut histogram = edges::GradientHistogram::measure(ws.grey, base, ws.rows);
         // Only a level above `noise_per_binning` bins further; below it the cap cannot matter.
-        let noise = noise_level(&histogram, ws.grey, base, self.config.noise_per_binning);
+        // The working image's Laplacian, once measured: when the frame is not binned further,
+        // the floor below asks for it again on the same image.
+        let mut laplacian = None;
+        let noise = noise_level(
+            &histogram,
+            ws.grey,
+            base,
+            self.config.noise_per_binning,
+            &mut laplacian,
+        );
         let extra = usize::from(noise.div_ceil(self.config.noise_per_binning.max(1))).clamp(1, 4);
         let mut geo = base;
         if extra > 1 {
             let coarser = Working::with_scale(width, height, base.scale * extra);
             if coarser.width >= MIN_WORKING_WIDTH && coarser.height >= MIN_WORKING_WIDTH / 2 {
                 geo = coarser;
+                laplacian = None;
                 edges::build_working_image(frame, geo, ws.grey);
                 histogram = edges::GradientHistogram::measure(ws.grey, geo, ws.rows);
             }
@@ -456,6 +466,7 @@ impl HorizonDetector {
                 ws.grey,
                 geo,
                 self.config.min_gradient.max(budget_threshold) / factor,
+                &mut laplacian,
             )
             .saturating_mul(u16::from(self.config.noise_floor_factor)),
         );
@@ -1087,17 +1098,19 @@ const ABOVE_EDGE_EXPLAINED: f32 = 0.5;
 ///
 /// `matters_above`: a level at or below this decides nothing for the caller, so the
 /// percentile is returned as it is without the Laplacian pass (the cap only lowers the level).
+/// `laplacian`: the pass's result on this working image, if it was measured (and then kept).
 fn noise_level(
     histogram: &edges::GradientHistogram,
     grey: &[u8],
     geo: Working,
     matters_above: u16,
+    laplacian: &mut Option<f32>,
 ) -> u16 {
     let percentile = histogram.percentile(NOISE_PERCENTILE);
     if percentile <= matters_above {
         return percentile;
     }
-    let cap = edges::laplacian_mean_abs(grey, geo);
+    let cap = *laplacian.get_or_insert_with(|| edges::laplacian_mean_abs(grey, geo));
     if f32::from(percentile) > cap {
         cap as u16
     } else {

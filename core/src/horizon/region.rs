@@ -246,7 +246,12 @@ fn top_profile(
 ) -> [Bins; 2] {
     let scale = geo.scale as f32;
     let (nx, ny) = (libm::sinf(angle), libm::cosf(angle));
-    let mut halves = [[(0.0f32, 0.0f32); TOP_BINS]; 2];
+    // Pixel counts and luma sums in integers, one more bin for the pixels outside: a bin holds
+    // a row or two of the working image, far under 2^24 / 255 pixels, so adding them as f32
+    // one at a time would be exact and give the same values; in integers the adds do not wait
+    // on each other's rounding.
+    let mut counts = [[0u32; TOP_BINS + 1]; 2];
+    let mut sums = [[0u32; TOP_BINS + 1]; 2];
     // Bin of a working pixel: its sky-ward distance in rho steps, offset by the reach and
     // rounded; linear along a row, as is the place along the line.
     let inverse = sky_ward / rho_step;
@@ -281,14 +286,25 @@ fn top_profile(
             let column = (first + i) as u32 as f32;
             let f = row_start + column * along_row;
             let half = usize::from(line_start + column * along_line_per_column >= 0.0);
-            if f >= 0.0
-                && let Some(bin) = halves
-                    .get_mut(half)
-                    .and_then(|h| h.get_mut(f as i32 as usize))
-            {
-                bin.0 += 1.0;
-                bin.1 += f32::from(value);
+            // NaN goes outside too.
+            let index = if (0.0..TOP_BINS as f32).contains(&f) {
+                (f as i32 as usize).min(TOP_BINS)
+            } else {
+                TOP_BINS
+            };
+            if let (Some(count), Some(sum)) = (
+                counts.get_mut(half).and_then(|c| c.get_mut(index)),
+                sums.get_mut(half).and_then(|s| s.get_mut(index)),
+            ) {
+                *count += 1;
+                *sum += u32::from(value);
             }
+        }
+    }
+    let mut halves = [[(0.0f32, 0.0f32); TOP_BINS]; 2];
+    for ((half, counts), sums) in halves.iter_mut().zip(&counts).zip(&sums) {
+        for ((bin, &count), &sum) in half.iter_mut().zip(counts).zip(sums) {
+            *bin = (count as f32, sum as f32);
         }
     }
     halves

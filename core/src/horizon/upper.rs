@@ -106,6 +106,110 @@ impl Filling<'_> {
     }
 }
 
+/// A bin's pixel count, luma sum and sum of squares in integers (see [`Profile::measure`]).
+#[derive(Clone, Copy, Default)]
+struct WholeBin {
+    n: u32,
+    sum: u32,
+    sum2: u64,
+}
+
+impl WholeBin {
+    /// Whether adding the bin's whole numbers in f32 one by one never rounded: every
+    /// partial sum was at most 2^24.
+    fn exact_in_f32(&self) -> bool {
+        const EXACT: u64 = 1 << 24;
+        u64::from(self.n) <= EXACT && u64::from(self.sum) <= EXACT && self.sum2 <= EXACT
+    }
+}
+
+/// Calls `add(bin, luma)` for every working pixel whose distance from `chosen` falls in the
+/// profile's bins (from [`BELOW`] bins on its ground side to `reach` + [`SIDE`] on its sky
+/// side, `sky_ward` and `rho_step` as in [`Profile::measure`]), row by row, in the order the
+/// bins' sums are taken.
+fn each_pixel(
+    grey: &[u8],
+    geo: Working,
+    camera: &Camera,
+    (chosen, sky_ward, rho_step, reach): (Line, f32, f32, usize),
+    mut add: impl FnMut(usize, u8),
+) {
+    let (nx, ny) = chosen.normal();
+    let inverse = sky_ward / rho_step;
+    let low = -(BELOW as f32);
+    let high = (reach + SIDE) as f32;
+    let mut add = |s: f32, value: u8| {
+        if !(low..high).contains(&s) {
+            return;
+        }
+        // `s − low` is not negative: through i32, the cheap conversion.
+        add((s - low) as i32 as usize, value);
+    };
+    let rows = grey
+        .chunks_exact(geo.width.max(1))
+        .take(geo.height)
+        .enumerate();
+    if camera.k1 != 0.0 || camera.k2 != 0.0 {
+        // Undistorting every pixel cost more than the rest of the detector (0.65 ms a
+        // frame at 320×240): the bin is smooth along a row, so it is undistorted at knots
+        // [`KNOT`] columns apart and interpolated, on every other row.
+        for (wy, row) in rows.step_by(2) {
+            let bin_at = |wx: usize| {
+                let (u, v) = geo.to_frame(wx as f32, wy as f32);
+                camera
+                    .undistort_pixel(u, v)
+                    .map(|(x, y)| (x * nx + y * ny - chosen.rho) * inverse)
+            };
+            let mut a = 0usize;
+            let mut at_a = bin_at(0);
+            while a + 1 < row.len() {
+                let b = (a + KNOT).min(row.len() - 1);
+                let at_b = bin_at(b);
+                if let (Some(sa), Some(sb)) = (at_a, at_b) {
+                    let slope = (sb - sa) / (b - a) as f32;
+                    for (i, &value) in row.get(a..b).unwrap_or(&[]).iter().enumerate() {
+                        add(sa + i as f32 * slope, value);
+                    }
+                }
+                a = b;
+                at_a = at_b;
+            }
+        }
+        return;
+    }
+    // Without distortion the bin is linear in the pixel: one add per pixel, and only
+    // over the columns whose bin is in range (a band across the frame); a column either
+    // side of the computed range, and the test in `add`, absorb rounding.
+    let along_row = nx * geo.scale as f32 / camera.fx * inverse;
+    for (wy, row) in rows {
+        let (u0, v) = geo.to_frame(0.0, wy as f32);
+        let row_start = ((u0 - camera.cx) / camera.fx * nx + (v - camera.cy) / camera.fy * ny
+            - chosen.rho)
+            * inverse;
+        let columns = if libm::fabsf(along_row) < 1e-6 {
+            if (low..high).contains(&row_start) {
+                0..row.len()
+            } else {
+                0..0
+            }
+        } else {
+            let (a, b) = (
+                (low - row_start) / along_row,
+                (high - row_start) / along_row,
+            );
+            let (first, last) = (a.min(b) - 1.0, a.max(b) + 1.0);
+            let width = row.len() as f32;
+            (first.clamp(0.0, width) as usize)..(last.clamp(0.0, width) as usize)
+        };
+        let start = columns.start;
+        for (i, &value) in row.get(columns).unwrap_or(&[]).iter().enumerate() {
+            // Through u32: the same value (a column index) without the unsigned 64-bit
+            // conversion's fix-ups.
+            add(row_start + (start + i) as u32 as f32 * along_row, value);
+        }
+    }
+}
+
 /// A step found above the chosen line.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(crate) struct Step {
@@ -149,85 +253,39 @@ impl Profile {
         if rho_step.is_nan() || rho_step <= 0.0 {
             return profile;
         }
-        let (nx, ny) = chosen.normal();
-        let inverse = sky_ward / rho_step;
-        let low = -(BELOW as f32);
-        let high = (reach + SIDE) as f32;
+        // Counts, sums and sums of squares in integers first. Adding whole numbers in f32 one
+        // at a time is exact while every partial sum is at most 2^24, so where each bin's
+        // totals are, they are the f32 sums to the bit, without each add waiting on the one
+        // before. A bin holds about one working row's length of pixels (a sum of squares near
+        // 2^24 takes 258 pixels at 255); where a total is over, the f32 sums are taken as
+        // they always were.
+        let mut whole = [WholeBin::default(); BINS];
+        let band = (chosen, sky_ward, rho_step, reach);
+        each_pixel(grey, geo, camera, band, |index, value| {
+            if let Some(bin) = whole.get_mut(index) {
+                let value = u32::from(value);
+                bin.n += 1;
+                bin.sum += value;
+                bin.sum2 += u64::from(value * value);
+            }
+        });
+        if whole.iter().all(WholeBin::exact_in_f32) {
+            for (bin, whole) in profile.bins.iter_mut().zip(&whole) {
+                *bin = Bin {
+                    n: whole.n as f32,
+                    sum: whole.sum as f32,
+                    sum2: whole.sum2 as f32,
+                };
+            }
+            return profile;
+        }
         let mut filling = Filling {
             bins: &mut profile.bins,
             open: None,
         };
-        let mut add = |s: f32, value: u8| {
-            if !(low..high).contains(&s) {
-                return;
-            }
-            // `s − low` is not negative: through i32, the cheap conversion.
-            filling.add((s - low) as i32 as usize, value);
-        };
-        let rows = grey
-            .chunks_exact(geo.width.max(1))
-            .take(geo.height)
-            .enumerate();
-        if camera.k1 != 0.0 || camera.k2 != 0.0 {
-            // Undistorting every pixel cost more than the rest of the detector (0.65 ms a
-            // frame at 320×240): the bin is smooth along a row, so it is undistorted at knots
-            // [`KNOT`] columns apart and interpolated, on every other row.
-            for (wy, row) in rows.step_by(2) {
-                let bin_at = |wx: usize| {
-                    let (u, v) = geo.to_frame(wx as f32, wy as f32);
-                    camera
-                        .undistort_pixel(u, v)
-                        .map(|(x, y)| (x * nx + y * ny - chosen.rho) * inverse)
-                };
-                let mut a = 0usize;
-                let mut at_a = bin_at(0);
-                while a + 1 < row.len() {
-                    let b = (a + KNOT).min(row.len() - 1);
-                    let at_b = bin_at(b);
-                    if let (Some(sa), Some(sb)) = (at_a, at_b) {
-                        let slope = (sb - sa) / (b - a) as f32;
-                        for (i, &value) in row.get(a..b).unwrap_or(&[]).iter().enumerate() {
-                            add(sa + i as f32 * slope, value);
-                        }
-                    }
-                    a = b;
-                    at_a = at_b;
-                }
-            }
-            filling.close();
-            return profile;
-        }
-        // Without distortion the bin is linear in the pixel: one add per pixel, and only
-        // over the columns whose bin is in range (a band across the frame); a column either
-        // side of the computed range, and the test in `add`, absorb rounding.
-        let along_row = nx * geo.scale as f32 / camera.fx * inverse;
-        for (wy, row) in rows {
-            let (u0, v) = geo.to_frame(0.0, wy as f32);
-            let row_start = ((u0 - camera.cx) / camera.fx * nx + (v - camera.cy) / camera.fy * ny
-                - chosen.rho)
-                * inverse;
-            let columns = if libm::fabsf(along_row) < 1e-6 {
-                if (low..high).contains(&row_start) {
-                    0..row.len()
-                } else {
-                    0..0
-                }
-            } else {
-                let (a, b) = (
-                    (low - row_start) / along_row,
-                    (high - row_start) / along_row,
-                );
-                let (first, last) = (a.min(b) - 1.0, a.max(b) + 1.0);
-                let width = row.len() as f32;
-                (first.clamp(0.0, width) as usize)..(last.clamp(0.0, width) as usize)
-            };
-            let start = columns.start;
-            for (i, &value) in row.get(columns).unwrap_or(&[]).iter().enumerate() {
-                // Through u32: the same value (a column index) without the unsigned 64-bit
-                // conversion's fix-ups.
-                add(row_start + (start + i) as u32 as f32 * along_row, value);
-            }
-        }
+        each_pixel(grey, geo, camera, band, |index, value| {
+            filling.add(index, value)
+        });
         filling.close();
         profile
     }
