@@ -579,15 +579,16 @@ pub(crate) fn place(
     );
     let mut read_px = short_px;
     let [left, right] = &halves;
-    let first = find_edge(
-        &left.merged(right),
+    let mut both = left.merged(right);
+    let mut whole = find_edge(
+        &both,
         search_px,
         ground_px,
         transition_px,
         read_px,
         sky_brighter,
     );
-    if transition_px > short_px && first.is_some_and(|e| e.walk_reached_read_end) {
+    if transition_px > short_px && whole.is_some_and(|e| e.walk_reached_read_end) {
         (halves, total_pixels) = read_halves(
             frame,
             camera,
@@ -597,21 +598,23 @@ pub(crate) fn place(
             (transition_px + 3.0, ground_px + 3.0),
         );
         read_px = transition_px;
+        let [left, right] = &halves;
+        both = left.merged(right);
+        whole = find_edge(
+            &both,
+            search_px,
+            ground_px,
+            transition_px,
+            read_px,
+            sky_brighter,
+        );
     }
     let [left, right] = halves;
-    let both = left.merged(&right);
     let mut placement = Placement {
         pixels: total_pixels,
         ..Placement::default()
     };
-    let Some(whole) = find_edge(
-        &both,
-        search_px,
-        ground_px,
-        transition_px,
-        read_px,
-        sky_brighter,
-    ) else {
+    let Some(whole) = whole else {
         return (line, placement);
     };
     placement.step = whole.step * if sky_brighter { 1.0 } else { -1.0 };
