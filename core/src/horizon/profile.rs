@@ -567,48 +567,37 @@ pub(crate) fn place(
     };
     // The long read, up to `transition_px`, only when the walk to the top of the transition
     // reaches the end of the short one: most horizons are a step, and the long read costs
-    // as much again as the rest of the placement.
-    let short_px = search_px;
-    let (mut halves, mut total_pixels) = read_halves(
-        frame,
-        camera,
-        line,
-        sc,
-        along_columns,
-        (short_px + 3.0 + SMOOTHING_PX, ground_px + 3.0),
-    );
-    let mut read_px = short_px;
-    let [left, right] = &halves;
-    let mut both = left.merged(right);
-    let mut whole = find_edge(
-        &both,
-        search_px,
-        ground_px,
-        transition_px,
-        read_px,
-        sky_brighter,
-    );
-    if transition_px > short_px && whole.is_some_and(|e| e.walk_reached_read_end) {
-        (halves, total_pixels) = read_halves(
-            frame,
-            camera,
-            line,
-            sc,
-            along_columns,
-            (transition_px + 3.0, ground_px + 3.0),
-        );
-        read_px = transition_px;
-        let [left, right] = &halves;
-        both = left.merged(right);
-        whole = find_edge(
-            &both,
+    // as much again as the rest of the placement. The short read takes the pixels the
+    // smoothing reaches past its margin too, so that its noise estimate is the long read's.
+    let edge_in = |profile: &Profile, read_px: f32| {
+        find_edge(
+            profile,
             search_px,
             ground_px,
             transition_px,
             read_px,
             sky_brighter,
+        )
+    };
+    let read_and_find = |read_px: f32, smoothing_px: f32| {
+        let (halves, pixels) = read_halves(
+            frame,
+            camera,
+            line,
+            sc,
+            along_columns,
+            (read_px + 3.0 + smoothing_px, ground_px + 3.0),
         );
+        let [left, right] = &halves;
+        let both = left.merged(right);
+        let whole = edge_in(&both, read_px);
+        (halves, pixels, both, whole, read_px)
+    };
+    let mut read = read_and_find(search_px, SMOOTHING_PX);
+    if transition_px > search_px && read.3.is_some_and(|e| e.walk_reached_read_end) {
+        read = read_and_find(transition_px, 0.0);
     }
+    let (halves, total_pixels, both, whole, read_px) = read;
     let [left, right] = halves;
     let mut placement = Placement {
         pixels: total_pixels,
@@ -648,14 +637,7 @@ pub(crate) fn place(
         if p.columns < 8 {
             return None;
         }
-        let e = find_edge(
-            p,
-            search_px,
-            ground_px,
-            transition_px,
-            read_px,
-            sky_brighter,
-        )?;
+        let e = edge_in(p, read_px)?;
         if e.significance < MIN_SIGNIFICANCE || libm::fabsf(e.offset_px - whole.offset_px) > 3.0 {
             return None;
         }
