@@ -479,6 +479,15 @@ fn assert_right_or_honest(h: Option<Horizon>, roll_deg: f32, pitch_deg: f32, wha
     right
 }
 
+/// The wave vector (radians per pixel along u and v) of stripes whose crests run at `stripe_deg`
+/// from the rows, `period_px` apart.
+fn stripe_wave(stripe_deg: f32, period_px: f32) -> (f32, f32) {
+    (
+        -libm::sinf(stripe_deg * DEG) * 2.0 * PI / period_px,
+        libm::cosf(stripe_deg * DEG) * 2.0 * PI / period_px,
+    )
+}
+
 /// Haze seen from altitude: the ground fades into an airlight a little darker than the
 /// sky, so the horizon is a small step followed by a long ramp (extinction `k` = altitude /
 /// haze length, the ramp's steepest part lies at a depression of k/2).
@@ -799,10 +808,7 @@ fn sinusoidal_interference_across_the_horizon() {
     ];
     let mut right = 0;
     for (i, &(roll, pitch, stripe, period)) in cases.iter().enumerate() {
-        let (ku, kv) = (
-            -libm::sinf(stripe * DEG) * 2.0 * PI / period,
-            libm::cosf(stripe * DEG) * 2.0 * PI / period,
-        );
+        let (ku, kv) = stripe_wave(stripe, period);
         let phase = i as f32;
         let grey = render_grey(&camera, roll * DEG, pitch * DEG, |u, v, d| {
             let scene = if d <= 0.0 {
@@ -940,10 +946,7 @@ fn stripes_parallel_to_the_horizon_are_not_trusted_when_they_win() {
     for (i, &(roll, pitch, off, period, amplitude)) in cases.iter().enumerate() {
         // The horizon's image direction is at −roll to the rows.
         let stripe = -roll + off;
-        let (ku, kv) = (
-            -libm::sinf(stripe * DEG) * 2.0 * PI / period,
-            libm::cosf(stripe * DEG) * 2.0 * PI / period,
-        );
+        let (ku, kv) = stripe_wave(stripe, period);
         let phase = i as f32 * 1.3;
         let grey = render_grey(&camera, roll * DEG, pitch * DEG, |u, v, d| {
             let scene = if d <= 0.0 {
@@ -1038,10 +1041,7 @@ fn stripes_parallel_to_the_horizon_are_subtracted() {
             for (i, &(roll, pitch, off, period, amplitude, bar)) in cases.iter().enumerate() {
                 let stripe = -roll + off;
                 let period = period * scale;
-                let (ku, kv) = (
-                    -libm::sinf(stripe * DEG) * 2.0 * PI / period,
-                    libm::cosf(stripe * DEG) * 2.0 * PI / period,
-                );
+                let (ku, kv) = stripe_wave(stripe, period);
                 let phase = i as f32 * 0.7;
                 let bar_centre = (0.2 + 0.1 * i as f32) * h as f32;
                 let haze = hazy(sky, airlight, ground, k);
@@ -1149,10 +1149,7 @@ fn interference_across_a_thick_haze_is_read_at_the_top_of_its_ridge() {
         for (i, &(roll, pitch, off, period, amplitude, bar)) in cases.iter().enumerate() {
             let stripe = -roll + off;
             let period = period * scale;
-            let (ku, kv) = (
-                -libm::sinf(stripe * DEG) * 2.0 * PI / period,
-                libm::cosf(stripe * DEG) * 2.0 * PI / period,
-            );
+            let (ku, kv) = stripe_wave(stripe, period);
             let phase = i as f32 * 0.9;
             let bar_centre = (0.15 + 0.12 * i as f32) * h as f32;
             let haze = hazy(185.0, 172.0, 95.0, 0.06);
