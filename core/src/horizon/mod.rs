@@ -248,9 +248,9 @@ struct Scored {
     line: Line,
     horizon: HorizonLine,
     explained: f32,
-    /// The line's evidence that its brighter side is the sky
-    /// ([`hough::Separation::bright_is_sky`]).
-    bright_is_sky: f32,
+    /// The line's evidence that its brighter side is the sky, cue by cue
+    /// ([`hough::Separation::cues`]).
+    bright_side_cues: hough::SkyCues,
     coverage: f32,
     score: f32,
     continues_track: bool,
@@ -277,7 +277,7 @@ impl Scored {
             line,
             horizon,
             explained: separation.explained,
-            bright_is_sky: separation.bright_is_sky,
+            bright_side_cues: separation.cues,
             coverage,
             score: separation.explained * coverage,
             continues_track: false,
@@ -813,9 +813,16 @@ impl HorizonDetector {
         }
         // Which side is the sky must be clear: brighter, bluer and smoother together. Looking
         // down at fields, a field's border splits the frame as well as a horizon does, but
-        // the lighter field is no bluer and no smoother than the darker (the evidence sums to
-        // about zero); looking up, a cloud's edge has sky on both sides.
-        confidence *= (libm::fabsf(chosen.bright_is_sky) / CLEAR_SKY_EVIDENCE).clamp(0.0, 1.0);
+        // the lighter field is no smoother than the darker and less blue; looking up, a
+        // cloud's edge has sky on both sides. The cues are those of the side chosen as the
+        // sky: where the track or the upright prior chose it against the image's own
+        // evidence, the image does not vouch for the line.
+        let sky_cues = if chosen.sky_brighter() {
+            chosen.bright_side_cues
+        } else {
+            chosen.bright_side_cues.flipped()
+        };
+        confidence *= (sky_cues.agreed() / CLEAR_SKY_EVIDENCE).clamp(0.0, 1.0);
         if jumped {
             confidence *= 0.7;
         }
@@ -913,7 +920,7 @@ impl HorizonDetector {
     /// `line` scored as a candidate: its sky side from the image and the track, and whether
     /// it continues the track.
     fn scored(&self, line: Line, separation: hough::Separation, coverage: f32) -> Scored {
-        let horizon = self.orient(line, separation.bright_is_sky);
+        let horizon = self.orient(line, separation.bright_is_sky());
         Scored {
             continues_track: self.continues_track(&horizon),
             ..Scored::oriented(line, horizon, separation, coverage)
@@ -1097,7 +1104,7 @@ fn noise_level(
     }
 }
 
-/// Evidence that one side is the sky ([`hough::Separation::bright_is_sky`]) at and above which
+/// Evidence that one side is the sky ([`hough::SkyCues::agreed`]) at and above which
 /// it costs the confidence nothing; below it the confidence falls in proportion. Measured on
 /// `synth` seeds 1 and 2: the no-horizon frames' lines 0.7 at most, real horizons (low light
 /// included) 1.4 and up; 1.5 began to cost those.

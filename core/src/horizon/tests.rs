@@ -1169,3 +1169,86 @@ fn interference_across_a_thick_haze_is_read_at_the_top_of_its_ridge() {
         }
     }
 }
+
+/// An RGB frame from a colour function of (pixel u, pixel v, signed distance d below the true
+/// horizon in normalised units), sampled at the pixel centres.
+fn render_rgb(
+    camera: &Camera,
+    roll: f32,
+    pitch: f32,
+    colour: impl Fn(f32, f32, f32) -> [f32; 3],
+) -> Vec<u8> {
+    let (s, c, o) = (libm::sinf(roll), libm::cosf(roll), libm::tanf(pitch));
+    let (w, h) = (camera.width as usize, camera.height as usize);
+    let mut out = vec![0u8; w * h * 3];
+    for v in 0..h {
+        for u in 0..w {
+            let (x, y) = camera
+                .undistort_pixel(u as f32, v as f32)
+                .expect("inside the model");
+            let rgb = colour(u as f32, v as f32, s * x + c * y - o);
+            for (k, value) in rgb.iter().enumerate() {
+                out[(v * w + u) * 3 + k] = value.round().clamp(0.0, 255.0) as u8;
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn a_sunset_sky_less_blue_than_the_ground_is_still_the_sky() {
+    // At sunset the sky glows orange towards the horizon, redder than the dark ground under
+    // it: the colour cue says the brighter side is not the sky, brightness and smoothness say
+    // it is. Two against one must not take the horizon's confidence away.
+    let camera = camera_320();
+    for (i, &(roll, pitch)) in [(0.0, 2.0), (-20.0, -4.0), (15.0, 6.0)].iter().enumerate() {
+        let rgb = render_rgb(&camera, roll * DEG, pitch * DEG, |u, v, d| {
+            let grain = 6.0 * (hash(u as i64, v as i64, 40 + i as u64) - 0.5);
+            if d <= 0.0 {
+                // Orange at the horizon, duller higher up.
+                let glow = libm::expf(d / 0.15);
+                [
+                    150.0 + 85.0 * glow + grain,
+                    110.0 + 50.0 * glow + grain,
+                    110.0 - 15.0 * glow + grain,
+                ]
+            } else {
+                let blotch = 24.0 * (hash((u / 5.0) as i64, (v / 4.0) as i64, 41) - 0.5);
+                [
+                    45.0 + blotch + grain,
+                    50.0 + blotch + grain,
+                    48.0 + 0.5 * blotch + grain,
+                ]
+            }
+        });
+        let h = detect_once(camera, Pixels::Rgb(&rgb));
+        assert_attitude(h, roll, pitch, 1.0);
+        assert!(h.is_some_and(|h| h.confidence >= gate()), "{h:?}");
+    }
+}
+
+#[test]
+fn a_sunlit_fields_border_seen_steeply_down_is_not_a_horizon_frame_after_frame() {
+    // Looking 50° down at two fields: a sunlit stubble field, brighter than the green one
+    // beside it but less blue and as textured. Their border drifts slowly through the
+    // frames, as a horizon would, so the tracker follows it; it must never be trusted.
+    let camera = camera_320();
+    let mut buffers = Buffers::new(320, 240);
+    let mut detector = HorizonDetector::new(camera);
+    for i in 0..8 {
+        let (angle, offset) = ((-75.0 + 2.0 * i as f32) * DEG, 0.05 - 0.01 * i as f32);
+        let rgb = render_rgb(&camera, angle, offset, |u, v, d| {
+            let blotch = hash((u / 6.0) as i64, (v / 6.0) as i64, 50) - 0.5;
+            let grain = hash(u as i64, v as i64, 51 + i as u64) - 0.5;
+            let base = if d <= 0.0 {
+                [175.0, 165.0, 120.0]
+            } else {
+                [75.0, 105.0, 55.0]
+            };
+            base.map(|b| b + 10.0 * blotch + 6.0 * grain)
+        });
+        let frame = Frame::rgb(320, 240, &rgb).expect("frame fits");
+        let h = detector.detect(&frame, &mut buffers.workspace());
+        assert_not_trusted(h, &std::format!("field border, frame {i}"));
+    }
+}

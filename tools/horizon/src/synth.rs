@@ -58,8 +58,8 @@ pub enum Degradation {
     /// correlated along the rows, so a level horizon's small step must be told from the rows'
     /// own offsets.
     LowLight,
-    /// No horizon to see (issue 17's honesty): every other frame looks steeply down at fields
-    /// crossed by long straight roads, the others steeply up into the sky and its clouds.
+    /// No horizon to see (issue 17's honesty): runs of 8 frames looking steeply down at fields
+    /// crossed by long straight roads, then 8 steeply up into the sky and its clouds.
     /// Scored only on false confidence.
     NoHorizon,
     /// Analogue interference over a hazy horizon, in linear light (issue 17): the ground
@@ -337,11 +337,15 @@ impl Renderer {
     pub fn render(&self, index: usize) -> (Image, Truth) {
         let (mut truth, heading) = trajectory(index, self.seed);
         let no_horizon = self.degradation == Degradation::NoHorizon;
-        let looking_down = no_horizon && index % 2 == 0;
+        // Runs of 8 frames down, then 8 up: within a run the view drifts slowly, so a steady
+        // road or cloud edge persists from frame to frame as a horizon would, and the tracker
+        // must not lend it confidence.
+        let looking_down = no_horizon && (index / 8) % 2 == 0;
         if no_horizon {
-            // 45–75° nose down or up: the horizon is far outside the frame.
-            let away = 60.0 + 15.0 * (index as f32 * 0.37).sin();
-            truth.pitch_deg += if looking_down { -away } else { away };
+            // 40–70° nose down or up: the horizon is outside the frame at any roll (the
+            // frame's corner is 36° off the axis), from 17° past its edge to far away.
+            let away = 55.0 + 15.0 * (index as f32 * 0.21).sin();
+            truth.pitch_deg = if looking_down { -away } else { away };
         }
         let (roll, pitch) = (truth.roll_deg.to_radians(), truth.pitch_deg.to_radians());
         let (sr, cr, sp, cp, sh, ch) = (
@@ -1934,10 +1938,10 @@ mod tests {
     #[test]
     fn no_horizon_frames_show_no_horizon() {
         let renderer = Renderer::new(Degradation::NoHorizon, 160, 120, 4);
-        for index in 0..6 {
+        for index in (0..40).step_by(3) {
             let (image, truth) = renderer.render(index);
             assert!(!truth.visible, "frame {index}: {truth:?}");
-            assert!(truth.pitch_deg.abs() > 40.0, "frame {index}: {truth:?}");
+            assert!(truth.pitch_deg.abs() >= 40.0, "frame {index}: {truth:?}");
             // Looking down: all ground, no sky-blue pixel; looking up: all sky.
             let blue = image
                 .data
@@ -1945,7 +1949,7 @@ mod tests {
                 .filter(|p| p[2] > p[0].saturating_add(20))
                 .count();
             let pixels = image.width * image.height;
-            if index % 2 == 0 {
+            if (index / 8) % 2 == 0 {
                 assert_eq!(blue, 0, "frame {index} looks down");
             } else {
                 assert!(blue > pixels / 2, "frame {index} looks up: {blue} blue");

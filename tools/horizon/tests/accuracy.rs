@@ -276,3 +276,15 @@ fn dusk_haze_at_640_is_read_at_the_top_after_a_climb() {
     let median = errors.get(errors.len() / 2).copied().unwrap_or(f32::NAN);
     assert!(median <= 0.5, "median pitch error {median:.2}°: {errors:?}");
 }
+
+#[test]
+fn no_horizon_in_runs_of_frames_looking_down_or_up_is_never_trusted() {
+    // Seed 2 looks down on a sunlit field's border for frames 32–39 and at roads for 0–7:
+    // borders that persist from frame to frame as a horizon would. Before the sky cues had to
+    // agree (`hough::SkyCues::agreed`), 12 of its 40 frames passed the gate.
+    let set = bench::synthesise(Degradation::NoHorizon, 320, 240, 40, 2);
+    let (answers, _) = bench::run_ours(&set).expect("the detector runs");
+    let result = accuracy::evaluate(&answers, &set.truths);
+    assert_eq!(result.visible, 0, "{result:?}");
+    assert_eq!(result.false_confident_rate, 0.0, "{result:?}");
+}
