@@ -680,6 +680,58 @@ impl HorizonDetector {
             };
             climbed = true;
         }
+        // A ground edge out of parallel with the horizon (a field's border or a road not
+        // square to the view, on level ground: its vanishing point is on the horizon) is
+        // climbed from only where it is a sharp edge drawn along its whole length with
+        // hazy ground, less blue than the sky, right above it. Its horizon is looked for among
+        // edges turned up to `GROUND_EDGE_TURN_DEG`, then as a step in profiles across turned
+        // lines (a parallel profile smears a turned horizon's step).
+        // The edge a turned line was climbed from: not a rival to it.
+        let mut turned_from = None;
+        if !climbed && !from_region && sharp_ground_edge(&context, &chosen, sky_brighter) {
+            let sky_ward = if sky_brighter { 1.0 } else { -1.0 };
+            let turned = higher_edge_within(
+                &context,
+                accumulator,
+                &chosen,
+                sky_brighter,
+                min_votes,
+                GROUND_EDGE_TURN_DEG,
+            )
+            .or_else(|| {
+                // The step across each turned line; the best turn, then half a turn step
+                // either side of it (a step found across a line turned 3° from the horizon's
+                // direction is itself turned by up to 1.5°).
+                let step_across = |turn: f32| {
+                    let line = turned_about_its_foot(chosen.line, turn * PI / 180.0);
+                    let upper = higher_step(&context, &across(line), &chosen, sky_brighter)?;
+                    above_across_the_frame(&context, chosen.line, upper.line, sky_ward)
+                        .then_some((upper, turn))
+                };
+                let best =
+                    |a: &(Scored, f32), b: &(Scored, f32)| a.0.explained.total_cmp(&b.0.explained);
+                let (coarse, turn) = TURNED_PROFILES_DEG
+                    .iter()
+                    .filter_map(|&turn| step_across(turn))
+                    .max_by(best)?;
+                let half = 0.5 * TURNED_PROFILE_STEP_DEG;
+                [turn - half, turn + half]
+                    .into_iter()
+                    .filter_map(step_across)
+                    .chain([(coarse, turn)])
+                    .max_by(best)
+                    .map(|(upper, _)| upper)
+            });
+            if let Some(upper) = turned {
+                turned_from = Some(chosen.line);
+                profile = across(upper.line);
+                chosen = Scored {
+                    continues_track: self.continues_track(&upper.horizon),
+                    ..upper
+                };
+                climbed = true;
+            }
+        }
 
         // 7c: interference (see `stripes`). A striped sky above the chosen line: the line is a
         // crest nearly parallel to the horizon. A family of parallel candidates: the stripes'
@@ -809,7 +861,9 @@ impl HorizonDetector {
         // A ground edge the search climbed over is below the horizon by construction, not a
         // rival to it.
         let climbed_over = |s: &Scored| {
-            climbed && libm::fabsf(wrap_angle(s.line.angle - chosen.line.angle)) < 3.0 * PI / 180.0
+            (climbed
+                && libm::fabsf(wrap_angle(s.line.angle - chosen.line.angle)) < 3.0 * PI / 180.0)
+                || turned_from.is_some_and(|edge| same_line(s.line, edge, rho.step))
         };
         let rival = scored
             .iter()
@@ -995,14 +1049,38 @@ fn higher_edge(
     sky_brighter: bool,
     min_votes: u16,
 ) -> Option<Scored> {
+    higher_edge_within(
+        c,
+        accumulator,
+        chosen,
+        sky_brighter,
+        min_votes,
+        PARALLEL_TURN_DEG,
+    )
+}
+
+/// Most a horizon found above a ground edge of the same direction turns from it, in degrees
+/// (the Hough bins searched either side; the refined line may turn one degree more).
+const PARALLEL_TURN_DEG: f32 = 2.0;
+
+/// [`higher_edge`] among the directions within `turn_deg` of the chosen line's.
+fn higher_edge_within(
+    c: &LineContext<'_>,
+    accumulator: &[u16],
+    chosen: &Scored,
+    sky_brighter: bool,
+    min_votes: u16,
+    turn_deg: f32,
+) -> Option<Scored> {
     let bins = c.rho.bins();
     let centre = hough::angle_bin(chosen.line.angle);
     let start = c.rho.index(chosen.line.rho)? as isize;
     let sign: isize = if sky_brighter { 1 } else { -1 };
     let reach = (HIGHER_EDGE_REACH / c.rho.step) as isize;
     let mut best = Peak::default();
-    for da in 0..5 {
-        let a = (centre + ANGLE_BINS + da - 2) % ANGLE_BINS;
+    let turns = turn_deg as usize;
+    for da in 0..=2 * turns {
+        let a = (centre + ANGLE_BINS + da - turns) % ANGLE_BINS;
         for k in 4..=reach {
             let r = start + sign * k;
             if r < 0 || r >= bins as isize {
@@ -1027,8 +1105,13 @@ fn higher_edge(
     };
     let (line, inliers) = hough::refine(c.edges, start_line, c.bands, c.max_angle_difference)?;
     let sky_ward = if sky_brighter { 1.0 } else { -1.0 };
-    let parallel = libm::fabsf(wrap_angle(line.angle - chosen.line.angle)) < 3.0 * PI / 180.0;
-    if !parallel || sky_ward * (line.rho - chosen.line.rho) < 2.0 * c.rho.step {
+    let near_parallel =
+        libm::fabsf(wrap_angle(line.angle - chosen.line.angle)) < (turn_deg + 1.0) * PI / 180.0;
+    // Above the edge at the frame's centre and, for a turned line, at both ends of the edge.
+    if !near_parallel
+        || sky_ward * (line.rho - chosen.line.rho) < 2.0 * c.rho.step
+        || (turn_deg > PARALLEL_TURN_DEG && !above_across_the_frame(c, chosen.line, line, sky_ward))
+    {
         return None;
     }
     let expected = expected_edge_pixels(c.camera, c.geo, line, c.rho, c.max_radius2);
@@ -1045,6 +1128,84 @@ fn higher_edge(
     }
     Some(Scored::new(line, sky_brighter, separation, coverage))
 }
+
+/// Whether `candidate` lies on the sky side (`sky_ward`) of `edge`, by at least two rho bins,
+/// at both ends of `edge` within the frame: a line across the edge inside the frame is not the
+/// horizon above it.
+fn above_across_the_frame(c: &LineContext<'_>, edge: Line, candidate: Line, sky_ward: f32) -> bool {
+    let (nx, ny) = edge.normal();
+    let (cx, cy) = candidate.normal();
+    let extent = libm::sqrtf(c.max_radius2);
+    [-extent, extent].iter().all(|&along| {
+        let (x, y) = (edge.rho * nx - along * ny, edge.rho * ny + along * nx);
+        sky_ward * (candidate.rho - (x * cx + y * cy)) >= 2.0 * c.rho.step
+    })
+}
+
+/// Most a ground edge's direction turns from the horizon's, in degrees: a straight field edge
+/// or road on level ground, seen 6–15° below the horizon, runs out of parallel with it by up
+/// to 6° where it is 35° out of square with the view (`synth` `oblique-ground-edge`).
+const GROUND_EDGE_TURN_DEG: f32 = 8.0;
+
+/// Turns of the lines the profile is also read across above a ground edge (degrees).
+const TURNED_PROFILES_DEG: [f32; 4] = [
+    -2.0 * TURNED_PROFILE_STEP_DEG,
+    -TURNED_PROFILE_STEP_DEG,
+    TURNED_PROFILE_STEP_DEG,
+    2.0 * TURNED_PROFILE_STEP_DEG,
+];
+const TURNED_PROFILE_STEP_DEG: f32 = 3.0;
+
+/// `line` turned by `turn` (radians) about its point nearest the frame's centre.
+fn turned_about_its_foot(line: Line, turn: f32) -> Line {
+    Line {
+        angle: wrap_angle(line.angle + turn),
+        rho: line.rho * libm::cosf(turn),
+    }
+}
+
+/// Whether `chosen` is a sharp ground edge with hazy ground right above it: it splits the frame
+/// and is drawn along nearly its whole length ([`SHARP_EDGE_EXPLAINED`],
+/// [`SHARP_EDGE_COVERAGE`]), and the band above it (from 3 rho bins to [`HIGHER_EDGE_REACH`] / 2
+/// on the sky side) is clearly less blue than the sky beyond ([`GROUND_BLUE_SHARE`]). Colour
+/// frames under a blue sky only (a grey frame's chroma is 0).
+fn sharp_ground_edge(c: &LineContext<'_>, chosen: &Scored, sky_brighter: bool) -> bool {
+    if chosen.explained < SHARP_EDGE_EXPLAINED || chosen.coverage < SHARP_EDGE_COVERAGE {
+        return false;
+    }
+    let line = chosen.line;
+    let sky_ward = if sky_brighter { 1.0 } else { -1.0 };
+    let (nx, ny) = line.normal();
+    let (band_from, band_to) = (3.0 * c.rho.step, 0.5 * HIGHER_EDGE_REACH);
+    let (mut band, mut beyond) = ((0.0f32, 0u32), (0.0f32, 0u32));
+    for s in c.samples {
+        let d = sky_ward * (s.x * nx + s.y * ny - line.rho);
+        if d >= band_to {
+            beyond = (beyond.0 + s.chroma, beyond.1 + 1);
+        } else if d > band_from {
+            band = (band.0 + s.chroma, band.1 + 1);
+        }
+    }
+    if band.1 < 8 || beyond.1 < 8 {
+        return false;
+    }
+    let (band, beyond) = (band.0 / band.1 as f32, beyond.0 / beyond.1 as f32);
+    beyond >= BLUE_SKY_CHROMA && band <= GROUND_BLUE_SHARE * beyond
+}
+
+/// Least share of the frame's variance a ground edge explains, and of its length drawn by
+/// edges, for [`sharp_ground_edge`]: on `oblique-ground-edge` seed 3 the borders explained
+/// 0.54–0.77 and were drawn along 0.98–1.00 (a weakly drawn edge line under a video link's
+/// blocks or on a hazy ramp, under 0.8).
+const SHARP_EDGE_EXPLAINED: f32 = 0.5;
+const SHARP_EDGE_COVERAGE: f32 = 0.9;
+/// Least blue (B − R, levels) of a sky for [`sharp_ground_edge`] to compare a band with.
+const BLUE_SKY_CHROMA: f32 = 20.0;
+/// Most of the sky's blue a band above a ground edge keeps ([`sharp_ground_edge`]). On `synth`
+/// seed 1 the band above a horizon held 0.67–0.70 of the blue of the sky beyond (`clean`,
+/// `haze`, `roads`: the sky's glow at the horizon); above an oblique ground edge whose horizon
+/// no parallel search found, 0.30 and less (`oblique-ground-edge` seeds 1–3).
+const GROUND_BLUE_SHARE: f32 = 0.45;
 
 /// Textured ground in the band between a ground edge (`edge`) and a candidate horizon above
 /// it (`candidate`, the sky on its `sky_ward` side), under smoother sky: enough samples in

@@ -1252,3 +1252,53 @@ fn a_sunlit_fields_border_seen_steeply_down_is_not_a_horizon_frame_after_frame()
         assert_not_trusted(h, &std::format!("field border, frame {i}"));
     }
 }
+
+#[test]
+fn faint_horizon_above_a_ground_edge_out_of_parallel_with_it() {
+    // A field's border on level ground, not square to the view: in the image it runs 3–6°
+    // out of parallel with the horizon, 8–12° below it, eight times the horizon's step, with
+    // hazy fields between (less blue than the sky) and a faint step to the sky. The parallel
+    // searches above the border found nothing, and the border was the answer.
+    let camera = camera_320();
+    let cases = [
+        // roll, pitch, the border's turn from the horizon (deg), its depth below (deg)
+        (0.0, 2.0, 5.0, 10.0),
+        (15.0, -3.0, -5.0, 9.0),
+        (-20.0, 4.0, 6.0, 12.0),
+        (8.0, 0.0, -6.0, 8.0),
+    ];
+    for (i, &(roll, pitch, turn, below)) in cases.iter().enumerate() {
+        let edge_roll = (roll + turn) * DEG;
+        let (se, ce) = (libm::sinf(edge_roll), libm::cosf(edge_roll));
+        let edge_offset = libm::tanf((pitch + below) * DEG);
+        let rgb = render_rgb(&camera, roll * DEG, pitch * DEG, |u, v, d| {
+            let (x, y) = ((u - camera.cx) / camera.fx, (v - camera.cy) / camera.fy);
+            let grain = 6.0 * (hash(u as i64, v as i64, 60 + i as u64) - 0.5);
+            let blotch = hash((u / 5.0) as i64, (v / 4.0) as i64, 61 + i as u64) - 0.5;
+            if d <= 0.0 {
+                // The sky, paler towards the horizon.
+                let glow = libm::expf(d / 0.1);
+                [
+                    120.0 + 60.0 * glow + grain,
+                    160.0 + 40.0 * glow + grain,
+                    230.0 - 5.0 * glow + grain,
+                ]
+            } else if se * x + ce * y - edge_offset <= 0.0 {
+                // Hazy far fields: pale and beige, a few levels under the sky's glow.
+                [
+                    172.0 + 10.0 * blotch + grain,
+                    186.0 + 10.0 * blotch + grain,
+                    206.0 + 6.0 * blotch + grain,
+                ]
+            } else {
+                [
+                    55.0 + 25.0 * blotch + grain,
+                    75.0 + 25.0 * blotch + grain,
+                    45.0 + 15.0 * blotch + grain,
+                ]
+            }
+        });
+        let h = detect_once(camera, Pixels::Rgb(&rgb));
+        assert_attitude(h, roll, pitch, 1.0);
+    }
+}

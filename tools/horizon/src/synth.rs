@@ -92,8 +92,7 @@ pub enum Degradation {
     /// `ground-edge` with the near field's border turned up to ±35° from square to the view
     /// (seventh session): in the image it runs up to 6° out of parallel with the horizon, its
     /// vanishing point on the horizon outside the frame, as a field's border or a road on level
-    /// ground does. Scored by `bench`; the detector does not yet climb from such an edge to a
-    /// faint horizon (docs/horizon.md, "Not done").
+    /// ground does.
     ObliqueGroundEdge,
 }
 

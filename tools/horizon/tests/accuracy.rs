@@ -206,6 +206,20 @@ fn ground_edge_far_below_a_hazy_horizon() {
 }
 
 #[test]
+fn ground_edge_out_of_parallel_below_a_hazy_horizon() {
+    // The same border turned up to ±35° from square to the view (up to 6° out of parallel
+    // with the horizon in the image). Before the turned searches: 0.57 within 2°, a third of
+    // the frames the border itself past the gate. Of the misses left (3–7° off) one in 30
+    // passes the gate.
+    let bounds = Bounds {
+        within_2deg: 0.8,
+        median_deg: 0.2,
+        p95_deg: 7.5,
+    };
+    check(Degradation::ObliqueGroundEdge, bounds);
+}
+
+#[test]
 fn interference_parallel_to_the_horizon() {
     // Not solved, only honest (docs/horizon.md): a crest next to the horizon is often the line
     // found (half of the frames within 2° here), and the striped sky keeps such answers under
