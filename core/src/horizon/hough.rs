@@ -423,8 +423,9 @@ impl Separation {
     }
 }
 
-/// Evidence that one side of a line is the sky, cue by cue, each in units of the frame's own
-/// spread: positive where that side is brighter, bluer, smoother than the other.
+/// Evidence that one side of a line is the sky, cue by cue, each scaled to the frame (the luma
+/// and colour differences by their spread, the texture difference by the two textures' sum):
+/// positive where that side is brighter, bluer, smoother than the other.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub(crate) struct SkyCues {
     pub brighter: f32,
@@ -464,7 +465,7 @@ impl SkyCues {
     }
 }
 
-/// A cue at or below minus this says the side is not the sky ([`SkyCues::agreed`]).
+/// A cue below minus this says the side is not the sky ([`SkyCues::agreed`]).
 const CUE_AGAINST: f32 = 0.3;
 /// The second cue for a side at which a cue against it costs nothing; below it the evidence
 /// falls in proportion. On `synth` seed 1 (all sets at 320×240, and the no-horizon sets of

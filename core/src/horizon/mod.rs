@@ -685,8 +685,8 @@ impl HorizonDetector {
         // climbed from only where it is a sharp edge drawn along its whole length with
         // hazy ground, less blue than the sky, right above it. Its horizon is looked for among
         // edges turned up to `GROUND_EDGE_TURN_DEG`, then as a step in profiles across turned
-        // lines (a parallel profile smears a turned horizon's step).
-        // The edge a turned line was climbed from: not a rival to it.
+        // lines (a parallel profile smears a turned horizon's step). The edge it was climbed
+        // from is kept: it is not the turned line's rival.
         let mut turned_from = None;
         if !climbed && !from_region && sharp_ground_edge(&context, &chosen, sky_brighter) {
             let sky_ward = if sky_brighter { 1.0 } else { -1.0 };
@@ -1195,8 +1195,8 @@ fn sharp_ground_edge(c: &LineContext<'_>, chosen: &Scored, sky_brighter: bool) -
 
 /// Least share of the frame's variance a ground edge explains, and of its length drawn by
 /// edges, for [`sharp_ground_edge`]: on `oblique-ground-edge` seed 3 the borders explained
-/// 0.54–0.77 and were drawn along 0.98–1.00 (a weakly drawn edge line under a video link's
-/// blocks or on a hazy ramp, under 0.8).
+/// 0.54–0.77 and were drawn along 0.98–1.00 (the weakly drawn lines the region search's second
+/// opinion looks at are drawn along under [`REGION_RECHECK_COVERAGE`]).
 const SHARP_EDGE_EXPLAINED: f32 = 0.5;
 const SHARP_EDGE_COVERAGE: f32 = 0.9;
 /// Least blue (B − R, levels) of a sky for [`sharp_ground_edge`] to compare a band with.
@@ -1292,9 +1292,9 @@ fn noise_level(
 }
 
 /// Evidence that one side is the sky ([`hough::SkyCues::agreed`]) at and above which
-/// it costs the confidence nothing; below it the confidence falls in proportion. Measured on
-/// `synth` seeds 1 and 2: the no-horizon frames' lines 0.7 at most, real horizons (low light
-/// included) 1.4 and up; 1.5 began to cost those.
+/// it costs the confidence nothing; below it the confidence falls in proportion. Measured with
+/// the cues' plain sum (fourth session) on `synth` seeds 1 and 2: the no-horizon frames' lines
+/// 0.7 at most, real horizons (low light included) 1.4 and up; 1.5 began to cost those.
 const CLEAR_SKY_EVIDENCE: f32 = 1.0;
 
 /// Confidence kept by a line under a striped sky (see [`upper::Profile::striped`]): a
