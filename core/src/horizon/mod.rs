@@ -646,7 +646,14 @@ impl HorizonDetector {
         let sky_brighter = chosen.sky_brighter();
         let mut climbed = false;
         for _ in 0..if from_region { 0 } else { 2 } {
-            match higher_edge(&context, accumulator, &chosen, sky_brighter, min_votes) {
+            match higher_edge(
+                &context,
+                accumulator,
+                &chosen,
+                sky_brighter,
+                min_votes,
+                PARALLEL_TURN_DEG,
+            ) {
                 Some(upper) => {
                     chosen = Scored {
                         continues_track: self.continues_track(&upper.horizon),
@@ -690,7 +697,7 @@ impl HorizonDetector {
         let mut turned_from = None;
         if !climbed && !from_region && sharp_ground_edge(&context, &chosen, sky_brighter) {
             let sky_ward = if sky_brighter { 1.0 } else { -1.0 };
-            let turned = higher_edge_within(
+            let turned = higher_edge(
                 &context,
                 accumulator,
                 &chosen,
@@ -1039,32 +1046,16 @@ const HIGHER_EDGE_REACH: f32 = 0.27;
 /// Ground between two edges is this much more textured than the sky above the upper one.
 const GROUND_TEXTURE_RATIO: f32 = 1.5;
 
-/// The edge above `chosen` (same direction within 2°, same polarity) that is the real
-/// horizon, if there is one: it must separate the frame at least half as well, be drawn along
-/// a third of its length, and have textured ground between it and `chosen` under smooth sky.
-fn higher_edge(
-    c: &LineContext<'_>,
-    accumulator: &[u16],
-    chosen: &Scored,
-    sky_brighter: bool,
-    min_votes: u16,
-) -> Option<Scored> {
-    higher_edge_within(
-        c,
-        accumulator,
-        chosen,
-        sky_brighter,
-        min_votes,
-        PARALLEL_TURN_DEG,
-    )
-}
-
 /// Most a horizon found above a ground edge of the same direction turns from it, in degrees
 /// (the Hough bins searched either side; the refined line may turn one degree more).
 const PARALLEL_TURN_DEG: f32 = 2.0;
 
-/// [`higher_edge`] among the directions within `turn_deg` of the chosen line's.
-fn higher_edge_within(
+/// The edge above `chosen` (same polarity, its direction within `turn_deg` of the chosen
+/// line's: [`PARALLEL_TURN_DEG`], or [`GROUND_EDGE_TURN_DEG`] for an oblique ground edge) that
+/// is the real horizon, if there is one: it must separate the frame at least half as well, be
+/// drawn along a third of its length, and have textured ground between it and `chosen` under
+/// smooth sky; a turned line must lie above `chosen` across the whole frame.
+fn higher_edge(
     c: &LineContext<'_>,
     accumulator: &[u16],
     chosen: &Scored,
