@@ -94,10 +94,19 @@ pub enum Degradation {
     /// vanishing point on the horizon outside the frame, as a field's border or a road on level
     /// ground does.
     ObliqueGroundEdge,
+    /// A coast (eighth session): sea on one side of a shoreline with bays, fields crossed by
+    /// roads and hedges on the other, in some runs a bright beach between them; the coast
+    /// turned up to ±70° from square to the view, 250 m to 3 km ahead, the sea beyond it (the
+    /// horizon over the sea) or the airplane over the sea (the horizon over the land) in runs
+    /// of 20 frames; `ground-edge`'s haze, so the far sea meets the sky in a step of 12–16
+    /// levels and the shore below it is the stronger edge. One run of 8 frames in 32 looks
+    /// 40–70° down at the shoreline, where the sea is darker, bluer and smoother than the
+    /// land, as a sky is: scored only on false confidence.
+    Coast,
 }
 
 impl Degradation {
-    pub const SETS: [Degradation; 22] = [
+    pub const SETS: [Degradation; 23] = [
         Degradation::Clean,
         Degradation::SensorNoise,
         Degradation::TransmissionNoise,
@@ -120,6 +129,7 @@ impl Degradation {
         Degradation::VideoLink,
         Degradation::TreeLine,
         Degradation::ObliqueGroundEdge,
+        Degradation::Coast,
     ];
 
     pub fn name(self) -> &'static str {
@@ -147,6 +157,7 @@ impl Degradation {
             Degradation::VideoLink => "video-link",
             Degradation::TreeLine => "tree-line",
             Degradation::ObliqueGroundEdge => "oblique-ground-edge",
+            Degradation::Coast => "coast",
         }
     }
 
@@ -348,11 +359,15 @@ impl Renderer {
         // road or cloud edge persists from frame to frame as a horizon would, and the tracker
         // must not lend it confidence.
         let looking_down = no_horizon && (index / 8) % 2 == 0;
+        let at_the_coast = self.degradation == Degradation::Coast;
+        let down_at_the_coast = at_the_coast && (index / 8) % 4 == 3;
+        // 40–70° nose down or up: the horizon is outside the frame at any roll (the frame's
+        // corner is 36° off the axis), from 17° past its edge to far away.
+        let away = 55.0 + 15.0 * (index as f32 * 0.21).sin();
         if no_horizon {
-            // 40–70° nose down or up: the horizon is outside the frame at any roll (the
-            // frame's corner is 36° off the axis), from 17° past its edge to far away.
-            let away = 55.0 + 15.0 * (index as f32 * 0.21).sin();
             truth.pitch_deg = if looking_down { -away } else { away };
+        } else if down_at_the_coast {
+            truth.pitch_deg = -away;
         }
         let (roll, pitch) = (truth.roll_deg.to_radians(), truth.pitch_deg.to_radians());
         let (sr, cr, sp, cp, sh, ch) = (
@@ -394,6 +409,29 @@ impl Renderer {
             // The normal (north, east) and the line's distance along it.
             let normal = (ch * co - sh * so, sh * co + ch * so);
             (normal, ALTITUDE_M * co / depression.to_radians().tan())
+        });
+        let coast = at_the_coast.then(|| {
+            let phase = (self.seed % 1000) as f32;
+            let turn = (70.0 * (index as f32 * 0.05 + 3.0 * phase).sin()).to_radians();
+            let (so, co) = (turn.sin(), turn.cos());
+            // Ahead of the airplane along the normal: where the view's centre meets the
+            // ground when looking down, else 250 m to 3 km (25° to 2.3° below the horizon).
+            let distance = if down_at_the_coast {
+                ALTITUDE_M / away.to_radians().tan()
+                    * (1.0 + 0.25 * (index as f32 * 0.6 + phase).sin())
+            } else {
+                250.0 * 12f32.powf(0.5 + 0.5 * (index as f32 * 0.09 + 5.0 * phase).sin())
+            };
+            Coast {
+                normal: (ch * co - sh * so, sh * co + ch * so),
+                distance,
+                sea_beyond: (index / 20 + self.seed as usize) % 2 == 0,
+                beach_m: if (index / 16 + index / 40) % 2 == 0 {
+                    12.0
+                } else {
+                    0.0
+                },
+            }
         });
         let haze = if self.degradation == Degradation::Haze {
             Haze {
@@ -450,6 +488,9 @@ impl Renderer {
             if wd > 0.0 {
                 let t = ALTITUDE_M / wd;
                 let (gn, ge) = (north + t * wn, east + t * we);
+                if let Some(coast) = &coast {
+                    return coast.colour(world, (north, east), (t * wn, t * we), t * length);
+                }
                 if let Some(((nn, ne), edge)) = ground_edge {
                     let ahead = t * (wn * nn + we * ne);
                     return edge_field_colour(world, gn, ge, t * length, ahead < edge);
@@ -1412,6 +1453,71 @@ fn edge_field_colour(world: u64, north: f32, east: f32, distance: f32, near: boo
     std::array::from_fn(|i| (base[i] + texture) * (1.0 - k) + haze[i] * k)
 }
 
+/// The `coast` world in one frame: a shoreline square to `normal` (north, east) at `distance`
+/// metres ahead of the airplane along it.
+struct Coast {
+    normal: (f32, f32),
+    distance: f32,
+    /// The sea lies beyond the shoreline (the horizon is the sea's), else on the airplane's
+    /// side of it.
+    sea_beyond: bool,
+    /// The width of the sand between the fields and the sea (none: the fields reach the water).
+    beach_m: f32,
+}
+
+impl Coast {
+    /// The haze of the `ground-edge` world: the sea at the horizon 12–16 levels darker than
+    /// the sky there.
+    const HAZE: Haze = Haze {
+        distance_m: 1800.0,
+        colour: [188.0, 200.0, 216.0],
+        linear: false,
+    };
+}
+
+impl Coast {
+    /// The colour of the ground at `offset` (north, east) from the airplane at `airplane`,
+    /// `distance` metres along the ray.
+    fn colour(
+        &self,
+        world: u64,
+        airplane: (f32, f32),
+        offset: (f32, f32),
+        distance: f32,
+    ) -> [f32; 3] {
+        let (gn, ge) = (airplane.0 + offset.0, airplane.1 + offset.1);
+        let ahead = offset.0 * self.normal.0 + offset.1 * self.normal.1;
+        // Bays and headlands fixed to the ground, a tenth of the distance deep.
+        let along_shore = ge * self.normal.0 - gn * self.normal.1;
+        let bays = 0.25 * self.distance * (fbm(world ^ 0xC0A5, along_shore / 300.0, 0.5, 3) - 0.5);
+        let beyond = ahead - (self.distance + bays);
+        let seaward = if self.sea_beyond { beyond } else { -beyond };
+        if seaward < 0.0 && seaward > -self.beach_m {
+            let sand = (fbm(world ^ 0x5A4D, gn / 3.0, ge / 3.0, 2) - 0.5) * 20.0;
+            return hazed(
+                [196.0 + sand, 186.0 + sand, 150.0 + sand],
+                distance,
+                Coast::HAZE,
+            );
+        }
+        if seaward < 0.0 {
+            return ground_colour(world, gn, ge, distance, true, Coast::HAZE);
+        }
+        let waves = (fbm(world ^ 0x5EA, gn / 4.0, ge / 9.0, 2) - 0.5) * 14.0;
+        hazed(
+            [36.0 + waves, 60.0 + waves, 86.0 + waves],
+            distance,
+            Coast::HAZE,
+        )
+    }
+}
+
+/// `colour` seen through `distance` metres of haze, blended in 8-bit values.
+fn hazed(colour: [f32; 3], distance: f32, haze: Haze) -> [f32; 3] {
+    let k = 1.0 - (-distance / haze.distance_m).exp();
+    std::array::from_fn(|i| colour[i] * (1.0 - k) + haze.colour[i] * k)
+}
+
 /// A sinusoid of period 5–30 px (at 320 px) and amplitude 10–40 levels whose crests run at
 /// `angle` to the rows (within ±70° for `interference`; near the horizon's own direction is
 /// the hard case),
@@ -1975,5 +2081,47 @@ mod tests {
                 assert!(blue > pixels / 2, "frame {index} looks up: {blue} blue");
             }
         }
+    }
+
+    #[test]
+    fn coast_frames_show_sea_and_fields_and_look_down_at_the_shore_one_run_in_four() {
+        let renderer = Renderer::new(Degradation::Coast, 160, 120, 1);
+        let (mut sea_beyond, mut over_the_sea) = (0, 0);
+        for index in (0..80).step_by(3) {
+            let (image, truth) = renderer.render(index);
+            let share = |keep: &dyn Fn(&[u8]) -> bool| {
+                image.data.chunks_exact(3).filter(|p| keep(p)).count() as f32
+                    / (image.width * image.height) as f32
+            };
+            // Sea: dark and blue; fields: greener than blue; sky: light and blue.
+            let sea = share(&|p| p[2] > p[0].saturating_add(25) && p[2] < 150);
+            let fields = share(&|p| p[1] > p[2].saturating_add(10));
+            if (index / 8) % 4 == 3 {
+                assert!(!truth.visible, "frame {index}: {truth:?}");
+                assert!(truth.pitch_deg <= -40.0, "frame {index}: {truth:?}");
+                assert!(
+                    sea > 0.1 && fields > 0.1,
+                    "frame {index} looks down at the shore: sea {sea}, fields {fields}"
+                );
+                continue;
+            }
+            assert!(truth.visible, "frame {index}: {truth:?}");
+            // Along the bottom row: the sea when the airplane is over it, else fields.
+            let bottom = &image.data[(image.height - 1) * image.width * 3..];
+            let sea_below = bottom
+                .chunks_exact(3)
+                .filter(|p| p[2] > p[0].saturating_add(25))
+                .count()
+                > image.width / 2;
+            if sea_below {
+                over_the_sea += 1;
+            } else {
+                sea_beyond += 1;
+            }
+        }
+        assert!(
+            sea_beyond >= 5 && over_the_sea >= 5,
+            "{sea_beyond} {over_the_sea}"
+        );
     }
 }
