@@ -739,6 +739,48 @@ impl HorizonDetector {
                 climbed = true;
             }
         }
+        // A dark band under a bright sky: the chosen edge steps down towards the side taken
+        // as the sky, though that side as a whole is the brighter. Seen from the land over a
+        // hazy sea the shore is such an edge (the sea darker than the fields, fading into the
+        // haze up to the horizon); the horizon is the top of the band, the step where the
+        // sky's glow ends. Looked for from two working pixels inside the band.
+        let mut over_dark_band = false;
+        if !climbed
+            && !from_region
+            && !sky_brighter
+            && chosen.bright_side_cues.flipped().brighter > 0.0
+        {
+            let inside = Line {
+                angle: chosen.line.angle,
+                rho: chosen.line.rho - 2.0 * rho.step,
+            };
+            if let Some(top) = region::top_step(ws.grey, geo, &camera, inside, rho.step, -1.0)
+                && top.halves_agree
+                && top.one_transition
+                && top.sky_ward_px > TOP_AMBIGUITY
+            {
+                let separation = hough::separation(samples, top.line, 2.0 * rho.step);
+                if separation.explained >= MIN_EXPLAINED {
+                    let upper = Scored::new(top.line, true, separation, chosen.coverage);
+                    turned_from = Some(chosen.line);
+                    profile = upper::Profile::measure(
+                        ws.grey,
+                        geo,
+                        &camera,
+                        upper.line,
+                        1.0,
+                        rho.step,
+                        (HIGHER_EDGE_REACH / rho.step) as usize,
+                    );
+                    chosen = Scored {
+                        continues_track: self.continues_track(&upper.horizon),
+                        ..upper
+                    };
+                    climbed = true;
+                    over_dark_band = true;
+                }
+            }
+        }
 
         // 7c: interference (see `stripes`). A striped sky above the chosen line: the line is a
         // crest nearly parallel to the horizon. A family of parallel candidates: the stripes'
@@ -779,7 +821,7 @@ impl HorizonDetector {
             }
         }
         let samples = ws.samples.get(..sample_count).unwrap_or(&[]);
-        let mut sky_brighter = if destriped {
+        let mut sky_brighter = if destriped || over_dark_band {
             chosen.sky_brighter()
         } else {
             sky_brighter
@@ -910,6 +952,14 @@ impl HorizonDetector {
             chosen.bright_side_cues.flipped()
         };
         confidence *= (sky_cues.agreed() / CLEAR_SKY_EVIDENCE).clamp(0.0, 1.0);
+        // A sky far darker than the ground is rare over land (snow, a sunlit beach), while a
+        // sea seen steeply from above is darker than the fields, yet bluer and smoother, so it
+        // passes as a sky on two cues of three (`synth` `coast`, frames looking down at the
+        // shore: −1.4 to −1.5 on the brighter cue, past the gate at 0.3–0.5). A hazy frame
+        // filled with a deep blue sky is a little darker on its sky side (`haze`: −0.6).
+        if sky_cues.brighter < -DARKER_SKY_CUE {
+            confidence *= DARKER_SKY_CONFIDENCE;
+        }
         if jumped {
             confidence *= 0.7;
         }
@@ -1324,6 +1374,10 @@ const REGION_RECHECK_MARGIN: f32 = 1.15;
 /// stripes); `tree-line`, coded at a high quality, 1.4–2.5; `video-link` 2.9–13.5, `blocks`
 /// 5.6–16.3. Between the codec's high and low qualities.
 const CODED_IN_BLOCKS: f32 = 2.7;
+/// A sky side darker than this on the brighter cue (its luma below the ground's by this
+/// many spreads) keeps [`DARKER_SKY_CONFIDENCE`] of its confidence.
+const DARKER_SKY_CUE: f32 = 1.0;
+const DARKER_SKY_CONFIDENCE: f32 = 0.25;
 /// Most confidence a line found by regions gets (its edges are not what drew it).
 const REGION_CONFIDENCE: f32 = 0.8;
 /// A region line is not drawn by edges: it counts as covered along its length, so that its
