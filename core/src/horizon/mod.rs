@@ -964,12 +964,15 @@ impl HorizonDetector {
             chosen.bright_side_cues.flipped()
         };
         confidence *= (sky_cues.agreed() / CLEAR_SKY_EVIDENCE).clamp(0.0, 1.0);
-        // A sky far darker than the ground is rare over land (snow, a sunlit beach), while a
-        // sea seen steeply from above is darker than the fields, yet bluer and smoother, so it
+        // A sky darker than the ground is rare over land (snow, a sunlit beach), while a sea
+        // seen steeply from above is darker than the fields, yet bluer and smoother, so it
         // passes as a sky on two cues of three (`synth` `coast`, frames looking down at the
-        // shore: −1.4 to −1.5 on the brighter cue, past the gate at 0.3–0.5). A hazy frame
-        // filled with a deep blue sky is a little darker on its sky side (`haze`: −0.6).
-        if sky_cues.brighter < -DARKER_SKY_CUE {
+        // shore, past the gate at 0.3–0.67). The mean alone does not tell it from a hazy
+        // frame filled with a deep blue sky, darker on the whole than its hazy ground (the
+        // brighter cue −0.6 on `haze`, −0.8 to −1.5 on the sea), but such a sky still glows
+        // at the horizon: its brightest part outshines the ground, and the sea's does not.
+        if sky_cues.brighter < 0.0 && !sky_outshines_ground(samples, chosen.horizon, 2.0 * rho.step)
+        {
             confidence *= DARKER_SKY_CONFIDENCE;
         }
         if jumped {
@@ -1389,10 +1392,11 @@ const CODED_IN_BLOCKS: f32 = 2.7;
 /// A clear split (explaining at least [`REGION_RECHECK`]) replaces an edge line explaining
 /// less than that when it explains this much more.
 const CLEAR_SPLIT_MARGIN: f32 = 1.03;
-/// A sky side darker than this on the brighter cue (its luma below the ground's by this
-/// many spreads) keeps [`DARKER_SKY_CONFIDENCE`] of its confidence.
-const DARKER_SKY_CUE: f32 = 1.0;
+/// What confidence a sky darker than its ground keeps, where even the sky's brightest part
+/// does not outshine the ground (see [`sky_outshines_ground`]).
 const DARKER_SKY_CONFIDENCE: f32 = 0.25;
+/// The sky's brightest part: this share of its samples is darker.
+const SKY_BRIGHT_QUANTILE: f32 = 0.9;
 /// Most confidence a line found by regions gets (its edges are not what drew it).
 const REGION_CONFIDENCE: f32 = 0.8;
 /// A region line is not drawn by edges: it counts as covered along its length, so that its
@@ -1406,6 +1410,46 @@ const FAMILY_WEAK_SCORE: f32 = 0.5;
 /// Parallel candidates (within [`FAMILY_ANGLE`]) that make a family of stripes.
 const FAMILY: usize = 3;
 const FAMILY_ANGLE: f32 = 1.5 * PI / 180.0;
+
+/// Whether the brightest part of the sky side of `horizon` (its [`SKY_BRIGHT_QUANTILE`]
+/// luma) is at least as bright as the ground side's median: a sky glows at the horizon even
+/// where its blue zenith is darker than a hazy ground; a sea seen from above does not. Samples
+/// within `band` of the line, and clipped ones, are left out.
+fn sky_outshines_ground(samples: &[Sample], horizon: HorizonLine, band: f32) -> bool {
+    const BINS: usize = 64;
+    let (s, c) = (
+        libm::sinf(horizon.camera_roll_rad),
+        libm::cosf(horizon.camera_roll_rad),
+    );
+    let (mut sky, mut ground) = ([0u32; BINS], [0u32; BINS]);
+    for sample in samples.iter().filter(|p| p.luma < hough::SATURATED) {
+        let d = s * sample.x + c * sample.y - horizon.offset;
+        let side = if d < -band {
+            &mut sky
+        } else if d > band {
+            &mut ground
+        } else {
+            continue;
+        };
+        let bin = ((sample.luma.max(0.0) * BINS as f32 / 256.0) as usize).min(BINS - 1);
+        if let Some(count) = side.get_mut(bin) {
+            *count += 1;
+        }
+    }
+    // The bin below which `share` of the side's samples lie.
+    let quantile = |side: &[u32; BINS], share: f32| {
+        let total: u32 = side.iter().sum();
+        let wanted = (share * total as f32) as u32;
+        let mut seen = 0;
+        side.iter()
+            .position(|&n| {
+                seen += n;
+                seen > wanted
+            })
+            .unwrap_or(BINS)
+    };
+    quantile(&sky, SKY_BRIGHT_QUANTILE) >= quantile(&ground, 0.5)
+}
 
 /// A candidate with at least [`FAMILY`] − 1 others parallel to it (either polarity) and not
 /// the same line: the crests of a periodic pattern (several candidates refined onto one

@@ -1372,3 +1372,62 @@ fn hazy_sea_above_a_shore_is_below_the_sky_not_the_sky() {
         );
     }
 }
+
+#[test]
+fn a_sea_seen_steeply_down_is_not_a_sky_frame_after_frame() {
+    // Looking 50° down at a shore: the sea is darker than the fields, but bluer and smoother,
+    // so two cues of three take it for the sky. Its shore drifts slowly through the frames, as
+    // a horizon would; it must never be trusted.
+    let camera = camera_320();
+    let mut buffers = Buffers::new(320, 240);
+    let mut detector = HorizonDetector::new(camera);
+    for i in 0..8 {
+        let (angle, offset) = ((-20.0 + 2.0 * i as f32) * DEG, 0.1 - 0.02 * i as f32);
+        let rgb = render_rgb(&camera, angle, offset, |u, v, d| {
+            let grain = hash(u as i64, v as i64, 70 + i as u64) - 0.5;
+            if d <= 0.0 {
+                [40.0, 64.0, 90.0].map(|b| b + 6.0 * grain)
+            } else {
+                // Crops in rows and furrows: textured, as fields seen close are.
+                let blotch = hash((u / 3.0) as i64, (v / 2.0) as i64, 71) - 0.5;
+                [100.0, 118.0, 62.0].map(|b| b + 40.0 * blotch + 20.0 * grain)
+            }
+        });
+        let frame = Frame::rgb(320, 240, &rgb).expect("frame fits");
+        let h = detector.detect(&frame, &mut buffers.workspace());
+        assert_not_trusted(h, &std::format!("sea above a shore, frame {i}"));
+    }
+}
+
+#[test]
+fn a_deep_blue_sky_over_a_bright_haze_is_trusted() {
+    // A frame filled with a deep blue sky over a sliver of bright hazy ground: the sky is the
+    // darker side on the whole, but it glows at the horizon, brighter than the haze. A
+    // penalty on every sky darker than its ground took its confidence to a quarter.
+    let camera = camera_320();
+    for (i, &(roll, pitch)) in [(0.0, 12.0), (-20.0, 10.0), (30.0, 8.0)].iter().enumerate() {
+        let rgb = render_rgb(&camera, roll * DEG, pitch * DEG, |u, v, d| {
+            let grain = 4.0 * (hash(u as i64, v as i64, 80 + i as u64) - 0.5);
+            if d <= 0.0 {
+                // Pale at the horizon, deep blue within a few degrees (as `synth`'s sky).
+                let t = libm::sqrtf((-d / 0.6).min(1.0));
+                [
+                    200.0 - 120.0 * t + grain,
+                    214.0 - 84.0 * t + grain,
+                    232.0 - 22.0 * t + grain,
+                ]
+            } else {
+                let blotch = 16.0 * (hash((u / 5.0) as i64, (v / 4.0) as i64, 81) - 0.5);
+                let haze = libm::expf(-d / 0.15);
+                [
+                    182.0 * haze + 110.0 * (1.0 - haze) + blotch + grain,
+                    195.0 * haze + 125.0 * (1.0 - haze) + blotch + grain,
+                    212.0 * haze + 80.0 * (1.0 - haze) + 0.5 * blotch + grain,
+                ]
+            }
+        });
+        let h = detect_once(camera, Pixels::Rgb(&rgb));
+        assert_attitude(h, roll, pitch, 1.0);
+        assert!(h.is_some_and(|h| h.confidence >= 0.5), "{h:?}");
+    }
+}
