@@ -137,7 +137,8 @@ pub(crate) fn search_near(samples: &[Sample], extent: f32, line: Line) -> Option
 }
 
 /// [`search_near`] on every third sample: for a split that must be clear to count (it
-/// must explain most of the frame), at about half [`search_near`]'s cost.
+/// must explain most of the frame), at about three fifths of [`search_near`]'s cost (on
+/// `synth` `haze` at 320 px, 0.34 M instructions a frame added against 0.55 M).
 pub(crate) fn clear_split_near(samples: &[Sample], extent: f32, line: Line) -> Option<Line> {
     search_with(samples, extent, 3, Some(line.angle))
 }

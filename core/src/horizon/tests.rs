@@ -1409,7 +1409,7 @@ fn a_deep_blue_sky_over_a_bright_haze_is_trusted() {
         let rgb = render_rgb(&camera, roll * DEG, pitch * DEG, |u, v, d| {
             let grain = 4.0 * (hash(u as i64, v as i64, 80 + i as u64) - 0.5);
             if d <= 0.0 {
-                // Pale at the horizon, deep blue within a few degrees (as `synth`'s sky).
+                // Pale at the horizon, deep blue higher up (as `synth`'s sky).
                 let t = libm::sqrtf((-d / 0.6).min(1.0));
                 [
                     200.0 - 120.0 * t + grain,

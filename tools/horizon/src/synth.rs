@@ -1473,9 +1473,7 @@ impl Coast {
         colour: [188.0, 200.0, 216.0],
         linear: false,
     };
-}
 
-impl Coast {
     /// The colour of the ground at `offset` (north, east) from the airplane at `airplane`,
     /// `distance` metres along the ray.
     fn colour(
@@ -1487,7 +1485,7 @@ impl Coast {
     ) -> [f32; 3] {
         let (gn, ge) = (airplane.0 + offset.0, airplane.1 + offset.1);
         let ahead = offset.0 * self.normal.0 + offset.1 * self.normal.1;
-        // Bays and headlands fixed to the ground, a tenth of the distance deep.
+        // Bays and headlands fixed to the ground, up to an eighth of the distance either way.
         let along_shore = ge * self.normal.0 - gn * self.normal.1;
         let bays = 0.25 * self.distance * (fbm(world ^ 0xC0A5, along_shore / 300.0, 0.5, 3) - 0.5);
         let beyond = ahead - (self.distance + bays);

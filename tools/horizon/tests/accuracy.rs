@@ -1,6 +1,7 @@
 //! Accuracy on synthesised flights, one test per degradation of the seed's video (thesis
-//! §6.2.3), 320×240. Bounds hold for this seed with margin; `cargo run --release -p
-//! skyframe-horizon -- bench --seed 5 --frames 30 --no-opencv` prints the same figures.
+//! §6.2.3), 320×240. Bounds hold for the seed with margin (5, unless a test names another);
+//! `cargo run --release -p skyframe-horizon -- bench --seed 5 --frames 30 --no-opencv` prints
+//! the same figures.
 //!
 //! Two kinds of assertions:
 //! - accuracy: share of frames with roll and pitch both within 2°, median and 95th-percentile
