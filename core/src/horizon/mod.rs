@@ -589,15 +589,14 @@ impl HorizonDetector {
         // replace the best edge line.
         let found = match hough_best {
             Some(b) if b.explained >= REGION_TRIGGER => {
-                if b.explained < REGION_RECHECK
-                    && b.coverage < REGION_RECHECK_COVERAGE
-                    && stripe_family(&scored, rho.step).is_none()
+                if b.explained >= REGION_RECHECK || stripe_family(&scored, rho.step).is_some() {
+                    None
+                } else if b.coverage < REGION_RECHECK_COVERAGE
                     && blocks::grid_contrast(frame) >= CODED_IN_BLOCKS
                 {
                     region::search_near(samples, extent, b.line)
                         .map(|line| (line, &CODED_FRAME_BARS[..]))
-                } else if b.explained < REGION_RECHECK && stripe_family(&scored, rho.step).is_none()
-                {
+                } else {
                     // A faint hazy horizon over fields crossed by roads and hedges: the edge
                     // line follows the fields' edges in the haze, degrees of roll off the
                     // horizon (`synth` `coast`, 2–13°), while sky and ground still split
@@ -606,8 +605,6 @@ impl HorizonDetector {
                     // line (`low-light` 640 seed 2: 0.58 → 0.25 within 2° with any split).
                     region::clear_split_near(samples, extent, b.line)
                         .map(|line| (line, &CLEAR_SPLIT_BARS[..]))
-                } else {
-                    None
                 }
             }
             _ => region::search(samples, extent).map(|line| (line, &NO_EDGE_LINE_BARS[..])),
@@ -668,36 +665,32 @@ impl HorizonDetector {
                 PARALLEL_TURN_DEG,
             ) {
                 Some(upper) => {
-                    chosen = Scored {
-                        continues_track: self.continues_track(&upper.horizon),
-                        ..upper
-                    };
+                    chosen = self.tracked(upper);
                     climbed = true;
                 }
                 None => break,
             }
         }
-        let across = |line: Line| {
+        let sky_ward = if sky_brighter { 1.0 } else { -1.0 };
+        // The profile across `line`, the sky on the `sky_ward` side of its normal.
+        let across = |line: Line, sky_ward: f32| {
             upper::Profile::measure(
                 ws.grey,
                 geo,
                 &camera,
                 line,
-                if sky_brighter { 1.0 } else { -1.0 },
+                sky_ward,
                 rho.step,
                 (HIGHER_EDGE_REACH / rho.step) as usize,
             )
         };
-        let mut profile = across(chosen.line);
+        let mut profile = across(chosen.line, sky_ward);
         if !climbed
             && !from_region
             && let Some(upper) = higher_step(&context, &profile, &chosen, sky_brighter)
         {
-            profile = across(upper.line);
-            chosen = Scored {
-                continues_track: self.continues_track(&upper.horizon),
-                ..upper
-            };
+            profile = across(upper.line, sky_ward);
+            chosen = self.tracked(upper);
             climbed = true;
         }
         // A ground edge out of parallel with the horizon (a field's border or a road not
@@ -709,7 +702,6 @@ impl HorizonDetector {
         // from is kept: it is not the turned line's rival.
         let mut turned_from = None;
         if !climbed && !from_region && sharp_ground_edge(&context, &chosen, sky_brighter) {
-            let sky_ward = if sky_brighter { 1.0 } else { -1.0 };
             let turned = higher_edge(
                 &context,
                 accumulator,
@@ -724,7 +716,8 @@ impl HorizonDetector {
                 // direction is itself turned by up to 1.5°).
                 let step_across = |turn: f32| {
                     let line = turned_about_its_foot(chosen.line, turn * PI / 180.0);
-                    let upper = higher_step(&context, &across(line), &chosen, sky_brighter)?;
+                    let upper =
+                        higher_step(&context, &across(line, sky_ward), &chosen, sky_brighter)?;
                     above_across_the_frame(&context, chosen.line, upper.line, sky_ward)
                         .then_some((upper, turn))
                 };
@@ -744,11 +737,8 @@ impl HorizonDetector {
             });
             if let Some(upper) = turned {
                 turned_from = Some(chosen.line);
-                profile = across(upper.line);
-                chosen = Scored {
-                    continues_track: self.continues_track(&upper.horizon),
-                    ..upper
-                };
+                profile = across(upper.line, sky_ward);
+                chosen = self.tracked(upper);
                 climbed = true;
             }
         }
@@ -776,19 +766,8 @@ impl HorizonDetector {
                 if separation.explained >= MIN_EXPLAINED {
                     let upper = Scored::new(top.line, true, separation, chosen.coverage);
                     turned_from = Some(chosen.line);
-                    profile = upper::Profile::measure(
-                        ws.grey,
-                        geo,
-                        &camera,
-                        upper.line,
-                        1.0,
-                        rho.step,
-                        (HIGHER_EDGE_REACH / rho.step) as usize,
-                    );
-                    chosen = Scored {
-                        continues_track: self.continues_track(&upper.horizon),
-                        ..upper
-                    };
+                    profile = across(upper.line, 1.0);
+                    chosen = self.tracked(upper);
                     climbed = true;
                     over_dark_band = true;
                 }
@@ -891,10 +870,7 @@ impl HorizonDetector {
             if separation.explained >= (TOP_STEP_KEEPS_SPLIT * chosen.explained).max(MIN_EXPLAINED)
             {
                 let upper = Scored::new(top.line, true, separation, chosen.coverage);
-                chosen = Scored {
-                    continues_track: self.continues_track(&upper.horizon),
-                    ..upper
-                };
+                chosen = self.tracked(upper);
             }
         }
         // A destriped line may still lie inside the transition rather than at its top (the
@@ -1074,9 +1050,14 @@ impl HorizonDetector {
     /// it continues the track.
     fn scored(&self, line: Line, separation: hough::Separation, coverage: f32) -> Scored {
         let horizon = self.orient(line, separation.bright_is_sky());
+        self.tracked(Scored::oriented(line, horizon, separation, coverage))
+    }
+
+    /// `scored` with whether it continues the track.
+    fn tracked(&self, scored: Scored) -> Scored {
         Scored {
-            continues_track: self.continues_track(&horizon),
-            ..Scored::oriented(line, horizon, separation, coverage)
+            continues_track: self.continues_track(&scored.horizon),
+            ..scored
         }
     }
 

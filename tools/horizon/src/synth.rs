@@ -1352,6 +1352,13 @@ impl Haze {
         colour: [150.0, 160.0, 170.0],
         linear: false,
     };
+    /// The `ground-edge` and `coast` worlds': the far ground 12–16 levels darker than the
+    /// sky at the horizon.
+    const NEAR_SKY: Haze = Haze {
+        distance_m: 1800.0,
+        colour: [188.0, 200.0, 216.0],
+        linear: false,
+    };
 }
 
 /// An 8-bit sRGB value (0–255, not clamped) to linear light (0–1).
@@ -1424,13 +1431,7 @@ fn ground_colour(
         }
     }
     let texture = (fbm(world ^ 0x7E7, north / 6.0, east / 6.0, 3) - 0.5) * 40.0;
-    let k = 1.0 - (-distance / haze.distance_m).exp();
-    if haze.linear {
-        return std::array::from_fn(|i| {
-            srgb_encode(srgb_decode(c[i] + texture) * (1.0 - k) + srgb_decode(haze.colour[i]) * k)
-        });
-    }
-    std::array::from_fn(|i| (c[i] + texture) * (1.0 - k) + haze.colour[i] * k)
+    hazed(c.map(|b| b + texture), distance, haze)
 }
 
 /// The `ground-edge` world: dark woodland up to a straight line, light fields beyond it that
@@ -1448,9 +1449,7 @@ fn edge_field_colour(world: u64, north: f32, east: f32, distance: f32, near: boo
             118.0 + 20.0 * pick,
         ]
     };
-    let haze = [188.0, 200.0, 216.0];
-    let k = 1.0 - (-distance / 1800.0).exp();
-    std::array::from_fn(|i| (base[i] + texture) * (1.0 - k) + haze[i] * k)
+    hazed(base.map(|b| b + texture), distance, Haze::NEAR_SKY)
 }
 
 /// The `coast` world in one frame: a shoreline square to `normal` (north, east) at `distance`
@@ -1466,14 +1465,6 @@ struct Coast {
 }
 
 impl Coast {
-    /// The haze of the `ground-edge` world: the sea at the horizon 12–16 levels darker than
-    /// the sky there.
-    const HAZE: Haze = Haze {
-        distance_m: 1800.0,
-        colour: [188.0, 200.0, 216.0],
-        linear: false,
-    };
-
     /// The colour of the ground at `offset` (north, east) from the airplane at `airplane`,
     /// `distance` metres along the ray.
     fn colour(
@@ -1495,24 +1486,30 @@ impl Coast {
             return hazed(
                 [196.0 + sand, 186.0 + sand, 150.0 + sand],
                 distance,
-                Coast::HAZE,
+                Haze::NEAR_SKY,
             );
         }
         if seaward < 0.0 {
-            return ground_colour(world, gn, ge, distance, true, Coast::HAZE);
+            return ground_colour(world, gn, ge, distance, true, Haze::NEAR_SKY);
         }
         let waves = (fbm(world ^ 0x5EA, gn / 4.0, ge / 9.0, 2) - 0.5) * 14.0;
         hazed(
             [36.0 + waves, 60.0 + waves, 86.0 + waves],
             distance,
-            Coast::HAZE,
+            Haze::NEAR_SKY,
         )
     }
 }
 
-/// `colour` seen through `distance` metres of haze, blended in 8-bit values.
+/// `colour` seen through `distance` metres of `haze`: the haze's share grows as
+/// 1 − e^(−distance / its distance), blended in 8-bit values or as radiance.
 fn hazed(colour: [f32; 3], distance: f32, haze: Haze) -> [f32; 3] {
     let k = 1.0 - (-distance / haze.distance_m).exp();
+    if haze.linear {
+        return std::array::from_fn(|i| {
+            srgb_encode(srgb_decode(colour[i]) * (1.0 - k) + srgb_decode(haze.colour[i]) * k)
+        });
+    }
     std::array::from_fn(|i| colour[i] * (1.0 - k) + haze.colour[i] * k)
 }
 
