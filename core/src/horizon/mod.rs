@@ -858,9 +858,8 @@ impl HorizonDetector {
         // frames 0 and 2, were read 5° low, one of them confidently). A line the search
         // climbed to from a ground edge may still be on the ramp (`low-light` 640 px, 4–7°
         // low from frame 26 of seed 1 on).
-        if !from_region
-            && sky_brighter
-            && profile.rises_above()
+        let mut on_ramp = !from_region && sky_brighter && profile.rises_above();
+        if on_ramp
             && let Some(top) = region::top_step(ws.grey, geo, &camera, chosen.line, rho.step, 1.0)
             && top.halves_agree
             && top.one_transition
@@ -871,6 +870,7 @@ impl HorizonDetector {
             {
                 let upper = Scored::new(top.line, true, separation, chosen.coverage);
                 chosen = self.tracked(upper);
+                on_ramp = false;
             }
         }
         // A destriped line may still lie inside the transition rather than at its top (the
@@ -954,6 +954,15 @@ impl HorizonDetector {
         }
         if jumped {
             confidence *= 0.7;
+        }
+        // The profile kept rising above the line and no top step was found there: in dim
+        // light the horizon's small step is lost in the noise and the edge line is the foot
+        // of the ramp up to the airlight, 3–12° low (`synth` `low-light`: 8 and 16 frames of
+        // 40 past the gate on seeds 1 and 2). Where more of the rise is above the line than
+        // across it, the line is not trusted; a horizon's own step is larger than what the
+        // sky above it adds.
+        if on_ramp && profile.at_foot_of_ramp(RAMP_EXTENT) {
+            confidence *= RAMP_CONFIDENCE;
         }
 
         // 8: the line's place in the transition, at full resolution (see `profile`). The
@@ -1410,6 +1419,16 @@ const CODED_FRAME_BARS: [SplitBar; 2] = [
 const DARKER_SKY_CONFIDENCE: f32 = 0.25;
 /// The sky's brightest part: this share of its samples is darker.
 const SKY_BRIGHT_QUANTILE: f32 = 0.9;
+
+/// What confidence an edge line keeps at the foot of a ramp (see
+/// `upper::Profile::at_foot_of_ramp`) with no top step found to move to ...
+const RAMP_CONFIDENCE: f32 = 0.25;
+/// ... a ramp whose transition reaches this far above the line (normalised units, tan 5.7°:
+/// 14 working pixels at 320×240 and 640×480, 60° wide). Measured on `synth`, most lines right
+/// under a hazy glow have transitions ending 5–10 working pixels above them, the feet of
+/// dim light's ramps 16–37; above real horizons the sky may go on brightening as far, but
+/// by less than across the horizon (`at_foot_of_ramp`'s second test).
+const RAMP_EXTENT: f32 = 0.1;
 /// Most confidence a line found by regions gets (its edges are not what drew it).
 const REGION_CONFIDENCE: f32 = 0.8;
 /// A region line is not drawn by edges: it counts as covered along its length, so that its

@@ -308,22 +308,25 @@ impl Profile {
         Some((contrast, contrast / error))
     }
 
+    /// Bin `i`'s mean, sky's polarity up (brighter towards a brighter sky); `None` for a bin
+    /// with too few pixels to say.
+    fn level(&self, i: usize) -> Option<f32> {
+        let polarity = if self.sky_ward > 0.0 { 1.0 } else { -1.0 };
+        self.bins
+            .get(i)
+            .filter(|b| b.n >= 8.0)
+            .map(|b| polarity * b.mean())
+    }
+
     /// Walking sky-ward from bin `start` while the profile (sky side up) does not fall back
     /// by [`TRANSITION_FALL`] of what it rose: the last bin of that transition, and how far
     /// it rose.
     fn transition_from(&self, start: usize) -> Option<(usize, f32)> {
-        let polarity = if self.sky_ward > 0.0 { 1.0 } else { -1.0 };
-        let value = |i: usize| {
-            self.bins
-                .get(i)
-                .filter(|b| b.n >= 8.0)
-                .map(|b| polarity * b.mean())
-        };
-        let first = value(start)?;
+        let first = self.level(start)?;
         let mut high = first;
         let mut end = start;
         while end < BELOW + self.reach {
-            let Some(v) = value(end + 1) else {
+            let Some(v) = self.level(end + 1) else {
                 break;
             };
             high = high.max(v);
@@ -339,6 +342,28 @@ impl Profile {
     /// first [`CLEAR_OF_CHOSEN`]` / 2` bins) by a step's worth ([`MIN_STEP_LEVELS`]): the line
     /// lies on a ramp, and the horizon may be at its top. Above a horizon's step the sky is
     /// level or darkens away from its glow.
+    /// Whether the line lies at the foot of a ramp rather than on a step: above the line's
+    /// own transition the profile rises by more than it rose across the line (from [`BELOW`]
+    /// bins under it to [`CLEAR_OF_CHOSEN`]` / 2` above it), in a transition (see
+    /// [`Profile::transition_from`]) that reaches at least `extent` (normalised units) above
+    /// the line. Under haze in dim light the ground's ramp up to the airlight is the
+    /// steepest part of the profile at the working resolution and the horizon's small step at
+    /// its top is lost in the noise. Above a real horizon the sky may go on brightening for
+    /// as far, but by less than the horizon's own step.
+    pub(crate) fn at_foot_of_ramp(&self, extent: f32) -> bool {
+        let own_top = BELOW + CLEAR_OF_CHOSEN / 2;
+        let (Some((end, rise)), Some(top), Some(foot)) = (
+            self.transition_from(own_top),
+            self.level(own_top),
+            self.level(0),
+        ) else {
+            return false;
+        };
+        rise >= MIN_STEP_LEVELS
+            && end.saturating_sub(BELOW) as f32 * self.rho_step >= extent
+            && rise >= top - foot
+    }
+
     pub(crate) fn rises_above(&self) -> bool {
         self.transition_from(BELOW + CLEAR_OF_CHOSEN / 2)
             .is_some_and(|(_, rise)| rise >= MIN_STEP_LEVELS)
@@ -446,5 +471,78 @@ impl Profile {
             k -= 1;
         }
         None
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A level line (normal up, so the sky is on its normal's side) between working rows 59
+    /// and 60 of a 160×120 working image binned from 320×240, and the profile across it of
+    /// the image whose row `r` has the level `row(r)`.
+    fn level_profile(row: impl Fn(usize) -> f32) -> Profile {
+        let geo = Working {
+            scale: 2,
+            width: 160,
+            height: 120,
+        };
+        let camera = Camera::ideal(320, 240, 60f32.to_radians());
+        let grey: std::vec::Vec<u8> = (0..geo.width * geo.height)
+            .map(|i| row(i / geo.width).round() as u8)
+            .collect();
+        let line = Line {
+            angle: core::f32::consts::PI,
+            rho: 0.0,
+        };
+        let rho_step = geo.scale as f32 / camera.fy;
+        Profile::measure(&grey, geo, &camera, line, 1.0, rho_step, 37)
+    }
+
+    #[test]
+    fn a_line_under_a_long_ramp_is_at_its_foot() {
+        // Ground at 100, then 30 rows rising to an airlight of 150.
+        let ramp = level_profile(|r| {
+            if r >= 60 {
+                100.0
+            } else {
+                100.0 + 50.0 * (60 - r).min(30) as f32 / 30.0
+            }
+        });
+        assert!(ramp.at_foot_of_ramp(0.1));
+    }
+
+    #[test]
+    fn a_horizon_step_under_a_sky_brightening_upwards_is_not() {
+        // A step of 60 levels, then a sky half a level brighter each row up (as far as the
+        // reach: 18 levels, less than the step).
+        let step = level_profile(|r| {
+            if r >= 60 {
+                100.0
+            } else {
+                160.0 + 0.5 * (59 - r) as f32
+            }
+        });
+        assert!(step.rises_above());
+        assert!(!step.at_foot_of_ramp(0.1));
+    }
+
+    #[test]
+    fn a_short_ramp_under_a_glowing_sky_is_not() {
+        // Eight rows up to 180, then a sky darkening away from its glow, 4 levels a row: more
+        // of the rise is above the line than across it, but the transition ends (falls back
+        // by a quarter of its rise) about 4° above the line, short of the extent asked.
+        let hazy_step = level_profile(|r| {
+            if r >= 60 {
+                100.0
+            } else if r >= 52 {
+                100.0 + 80.0 * (60 - r) as f32 / 8.0
+            } else {
+                (180.0 - 4.0 * (52 - r) as f32).max(0.0)
+            }
+        });
+        assert!(hazy_step.rises_above());
+        assert!(!hazy_step.at_foot_of_ramp(0.1));
+        assert!(hazy_step.at_foot_of_ramp(0.02));
     }
 }
