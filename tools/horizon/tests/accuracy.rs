@@ -337,8 +337,8 @@ fn dusk_haze_at_640_is_read_at_the_top_after_a_climb() {
 /// the edge line lay at the foot of the ramp up to the airlight, 3–12° low, and passed the
 /// estimator's gate in 8 and 16 frames of 40 (seed 2's with a step under 3 levels, scored on
 /// honesty only) until a line whose profile rises more above it than across it, with no top
-/// step to move to, kept a quarter of its confidence. Two frames a seed still pass, 2.2–3.1°
-/// wrong.
+/// step to move to, kept a quarter of its confidence. Two frames a seed still pass: 2.2–3.1°
+/// wrong, and seed 1's frame 9 with 8° of roll.
 #[test]
 fn dusk_haze_read_at_the_foot_of_its_ramp_is_not_trusted() {
     let gate = accuracy::gate();
