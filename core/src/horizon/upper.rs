@@ -342,6 +342,11 @@ impl Profile {
     /// first [`CLEAR_OF_CHOSEN`]` / 2` bins) by a step's worth ([`MIN_STEP_LEVELS`]): the line
     /// lies on a ramp, and the horizon may be at its top. Above a horizon's step the sky is
     /// level or darkens away from its glow.
+    pub(crate) fn rises_above(&self) -> bool {
+        self.transition_from(BELOW + CLEAR_OF_CHOSEN / 2)
+            .is_some_and(|(_, rise)| rise >= MIN_STEP_LEVELS)
+    }
+
     /// Whether the line lies at the foot of a ramp rather than on a step: above the line's
     /// own transition the profile rises by more than it rose across the line (from [`BELOW`]
     /// bins under it to [`CLEAR_OF_CHOSEN`]` / 2` above it), in a transition (see
@@ -362,11 +367,6 @@ impl Profile {
         rise >= MIN_STEP_LEVELS
             && end.saturating_sub(BELOW) as f32 * self.rho_step >= extent
             && rise >= top - foot
-    }
-
-    pub(crate) fn rises_above(&self) -> bool {
-        self.transition_from(BELOW + CLEAR_OF_CHOSEN / 2)
-            .is_some_and(|(_, rise)| rise >= MIN_STEP_LEVELS)
     }
 
     /// Whether the sky side is striped: clear steps of alternating polarity, at least
