@@ -1396,11 +1396,13 @@ const NO_EDGE_LINE_BARS: [SplitBar; 1] = [SplitBar {
     margin: REGION_MARGIN,
     least: MIN_EXPLAINED,
 }];
-/// A clear split near a weak edge line.
-const CLEAR_SPLIT_BARS: [SplitBar; 1] = [SplitBar {
+/// A clear split: explaining most of the frame, and a little more than the edge line.
+const CLEAR_SPLIT: SplitBar = SplitBar {
     margin: CLEAR_SPLIT_MARGIN,
     least: REGION_RECHECK,
-}];
+};
+/// A clear split near a weak edge line.
+const CLEAR_SPLIT_BARS: [SplitBar; 1] = [CLEAR_SPLIT];
 /// A frame coded in blocks: any split well ahead of the edge line, or a clear one a little
 /// ahead (`synth` `video-link` seed 3: splits explaining 0.77–0.80 against edge lines at
 /// 0.71–0.74, 7° of roll off the horizon, were held back by the first bar alone).
@@ -1409,10 +1411,7 @@ const CODED_FRAME_BARS: [SplitBar; 2] = [
         margin: REGION_RECHECK_MARGIN,
         least: MIN_EXPLAINED,
     },
-    SplitBar {
-        margin: CLEAR_SPLIT_MARGIN,
-        least: REGION_RECHECK,
-    },
+    CLEAR_SPLIT,
 ];
 /// What confidence a sky darker than its ground keeps, where even the sky's brightest part
 /// does not outshine the ground (see [`sky_outshines_ground`]).

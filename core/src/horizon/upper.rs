@@ -480,8 +480,9 @@ mod tests {
 
     /// A level line (normal up, so the sky is on its normal's side) between working rows 59
     /// and 60 of a 160×120 working image binned from 320×240, and the profile across it of
-    /// the image whose row `r` has the level `row(r)`.
-    fn level_profile(row: impl Fn(usize) -> f32) -> Profile {
+    /// an image with ground at 100 under the line and the level `above(k)` in the `k`th row
+    /// above it (`k` = 0 for row 59).
+    fn profile_over_ground(above: impl Fn(usize) -> f32) -> Profile {
         let geo = Working {
             scale: 2,
             width: 160,
@@ -489,7 +490,11 @@ mod tests {
         };
         let camera = Camera::ideal(320, 240, 60f32.to_radians());
         let grey: std::vec::Vec<u8> = (0..geo.width * geo.height)
-            .map(|i| row(i / geo.width).round() as u8)
+            .map(|i| {
+                let r = i / geo.width;
+                let level = if r >= 60 { 100.0 } else { above(59 - r) };
+                level.round() as u8
+            })
             .collect();
         let line = Line {
             angle: core::f32::consts::PI,
@@ -502,13 +507,7 @@ mod tests {
     #[test]
     fn a_line_under_a_long_ramp_is_at_its_foot() {
         // Ground at 100, then 30 rows rising to an airlight of 150.
-        let ramp = level_profile(|r| {
-            if r >= 60 {
-                100.0
-            } else {
-                100.0 + 50.0 * (60 - r).min(30) as f32 / 30.0
-            }
-        });
+        let ramp = profile_over_ground(|k| 100.0 + 50.0 * (k + 1).min(30) as f32 / 30.0);
         assert!(ramp.at_foot_of_ramp(0.1));
     }
 
@@ -516,13 +515,7 @@ mod tests {
     fn a_horizon_step_under_a_sky_brightening_upwards_is_not() {
         // A step of 60 levels, then a sky half a level brighter each row up (as far as the
         // reach: 18 levels, less than the step).
-        let step = level_profile(|r| {
-            if r >= 60 {
-                100.0
-            } else {
-                160.0 + 0.5 * (59 - r) as f32
-            }
-        });
+        let step = profile_over_ground(|k| 160.0 + 0.5 * k as f32);
         assert!(step.rises_above());
         assert!(!step.at_foot_of_ramp(0.1));
     }
@@ -532,13 +525,11 @@ mod tests {
         // Eight rows up to 180, then a sky darkening away from its glow, 4 levels a row: more
         // of the rise is above the line than across it, but the transition ends (falls back
         // by a quarter of its rise) about 4° above the line, short of the extent asked.
-        let hazy_step = level_profile(|r| {
-            if r >= 60 {
-                100.0
-            } else if r >= 52 {
-                100.0 + 80.0 * (60 - r) as f32 / 8.0
+        let hazy_step = profile_over_ground(|k| {
+            if k < 8 {
+                100.0 + 80.0 * (k + 1) as f32 / 8.0
             } else {
-                (180.0 - 4.0 * (52 - r) as f32).max(0.0)
+                (180.0 - 4.0 * (k - 7) as f32).max(0.0)
             }
         });
         assert!(hazy_step.rises_above());
