@@ -23,6 +23,7 @@ mod hough;
 mod profile;
 mod region;
 mod stripes;
+mod sync_bar;
 #[cfg(test)]
 mod tests;
 mod upper;
@@ -624,8 +625,14 @@ impl HorizonDetector {
         }
 
         // 7: choose, with tracking's jump gate.
-        let best_overall = best_of(&scored, |_| true).ok_or(Outcome::NoCandidate)?;
-        let best_continuation = best_of(&scored, |s| s.continues_track);
+        // An edge of a bar of blanked rows (lost vertical sync, see `sync_bar`) is chosen only
+        // when nothing else is: a level step drawn along the whole width, it can out-score a
+        // hazy horizon.
+        let not_a_bar = |s: &Scored| !sync_bar::along_blank_bar(ws.grey, geo, &camera, s.line);
+        let best_overall = best_of(&scored, not_a_bar)
+            .or_else(|| best_of(&scored, |_| true))
+            .ok_or(Outcome::NoCandidate)?;
+        let best_continuation = best_of(&scored, |s| s.continues_track && not_a_bar(s));
         let mut jumped = false;
         let chosen = match best_continuation {
             Some(c) if c.score * self.config.jump_factor >= best_overall.score => c,
@@ -976,6 +983,10 @@ impl HorizonDetector {
         // (`exposure`'s tinted skies).
         if stayed_on_ground_edge {
             confidence *= GROUND_EDGE_CONFIDENCE;
+        }
+        // The edge of a bar of blanked rows chosen for want of another line (see `sync_bar`).
+        if sync_bar::along_blank_bar(ws.grey, geo, &camera, chosen.line) {
+            confidence *= SYNC_BAR_CONFIDENCE;
         }
 
         // 8: the line's place in the transition, at full resolution (see `profile`). The
@@ -1445,6 +1456,9 @@ const RAMP_EXTENT: f32 = 0.1;
 /// under a profile still rising: on `synth` `oblique-ground-edge` seeds 1 and 2, 8 frames
 /// passed the gate 6–14° low with confidence 0.46–1.0.
 const GROUND_EDGE_CONFIDENCE: f32 = 0.25;
+/// Share of its confidence a line along a bar of blanked rows keeps (see `sync_bar`): on
+/// `synth` `black-stripes` seed 2, frame 29's bar edge (9° off) was its only candidate.
+const SYNC_BAR_CONFIDENCE: f32 = 0.25;
 /// Most confidence a line found by regions gets (its edges are not what drew it).
 const REGION_CONFIDENCE: f32 = 0.8;
 /// A region line is not drawn by edges: it counts as covered along its length, so that its

@@ -399,6 +399,27 @@ fn pale_tinted_glow_above_a_horizon_is_not_taken_for_hazy_ground() {
     );
 }
 
+/// Lost vertical sync blanks a bar of whole rows (`black-stripes`): the bar's level top edge
+/// out-scored a hazy horizon, 3–9° off, past the estimator's gate (seeds 1, 2 and 3: 1, 1 and 3
+/// frames of 40 at 320×240). A line along such a bar is now no candidate while another is,
+/// and keeps a quarter of its confidence when it is the only one (seed 2's frame 29).
+#[test]
+fn a_bar_of_blanked_rows_is_not_read_as_the_horizon() {
+    for seed in [1, 2, 3] {
+        let set = bench::synthesise(Degradation::BlackStripes, 320, 240, 40, seed);
+        let trusted_wrong = trusted_wrong_frames(&set);
+        assert!(
+            trusted_wrong.is_empty(),
+            "seed {seed}: frames {trusted_wrong:?} pass the gate more than 2° wrong"
+        );
+        if seed != 2 {
+            let (answers, _) = bench::run_ours(&set).expect("the detector runs");
+            let a = accuracy::evaluate(&answers, &set.truths);
+            assert_eq!(a.wrong, 0, "seed {seed}: {a:?}");
+        }
+    }
+}
+
 /// Frames whose answer passes the estimator's confidence gate with roll or pitch more than 2°
 /// wrong (frames scored as invisible included: a confident line there is wrong too).
 fn trusted_wrong_frames(set: &bench::SynthSet) -> Vec<usize> {

@@ -1,0 +1,205 @@
+//! A bar of blanked rows across the frame. An analogue link that loses vertical sync shows
+//! whole rows black (thesis Fig. 6-11, `synth` `black-stripes`), a few to a few tens of pixels
+//! thick, moving down the frame. The bar's edges are level steps drawn along the whole width,
+//! and under a hazy horizon its top edge, a step down from the sky, can out-score the horizon
+//! (`synth` `black-stripes` seeds 1–3: 4 % of the frames at 320×240 and 5 % at 640×480 passed
+//! the estimator's gate on a bar's edge, 3–9° off, with confidence 0.37–0.49). No scene gives
+//! rows black from edge to edge with brighter rows on both sides of them.
+
+use super::camera::Camera;
+use super::edges::Working;
+use super::hough::Line;
+
+/// Luma at or under which a working pixel counts as blanked (the bar's noise included) ...
+const BLANK: u8 = 24;
+/// ... and the share of a row's pixels that must be, for the row to be blanked.
+const BLANK_ROW_SHARE: f32 = 0.95;
+/// Thickest bar, as a share of the frame's height (`synth`'s are 4–18 of 240 rows).
+const MAX_BAR_SHARE: f32 = 0.125;
+/// Most a bar's edge line leans from the frame's rows (sine of half a degree): the bar is
+/// rows of the frame.
+const LEVEL_SINE: f32 = 0.0087;
+/// Working rows either side of the line searched for the bar's edge (the line is placed on
+/// the step between two rows, give or take the binning and the least-squares fit).
+const EDGE_REACH: isize = 2;
+
+/// Whether `line` runs along an edge of a bar of blanked rows, bounded by unblanked rows above
+/// and below within the frame.
+pub(crate) fn along_blank_bar(grey: &[u8], geo: Working, camera: &Camera, line: Line) -> bool {
+    let (s, c) = line.normal();
+    if libm::fabsf(s) > LEVEL_SINE || libm::fabsf(c) < 0.5 {
+        return false;
+    }
+    // The frame row the line crosses at the principal point's column, in working rows.
+    let v = camera.cy + camera.fy * line.rho / c;
+    let scale = geo.scale as f32;
+    let wy = (v + 0.5) / scale - 0.5;
+    if !wy.is_finite() {
+        return false;
+    }
+    let centre = libm::roundf(wy) as isize;
+    let blank = |row: isize| row_is_blank(grey, geo, row);
+    let max_rows = (MAX_BAR_SHARE * geo.height as f32) as isize;
+    (centre - EDGE_REACH..=centre + EDGE_REACH).any(|row| {
+        // `row` is a bar's first row from above (or from below) when the row before it is
+        // not blanked; the bar must end within `max_rows` on an unblanked row.
+        [1isize, -1].iter().any(|&way| {
+            if blank(row) != Some(true) || blank(row - way) != Some(false) {
+                return false;
+            }
+            (1..=max_rows).find_map(|k| match blank(row + way * k) {
+                Some(true) => None,
+                Some(false) => Some(true),
+                // The frame's edge: the bar is not bounded.
+                None => Some(false),
+            }) == Some(true)
+        })
+    })
+}
+
+/// Whether working row `row` is blanked; `None` outside the image.
+fn row_is_blank(grey: &[u8], geo: Working, row: isize) -> Option<bool> {
+    let row = usize::try_from(row).ok().filter(|&r| r < geo.height)?;
+    let pixels = grey.get(row * geo.width..(row + 1) * geo.width)?;
+    let blanked = pixels.iter().filter(|&&p| p <= BLANK).count();
+    Some(blanked as f32 >= BLANK_ROW_SHARE * pixels.len() as f32)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A 160×120 working image binned from 320×240, row `r` at `level(r, column)`.
+    fn image(level: impl Fn(usize, usize) -> u8) -> (std::vec::Vec<u8>, Working, Camera) {
+        let geo = Working {
+            scale: 2,
+            width: 160,
+            height: 120,
+        };
+        let grey = (0..geo.width * geo.height)
+            .map(|i| level(i / geo.width, i % geo.width))
+            .collect();
+        (grey, geo, Camera::ideal(320, 240, 60f32.to_radians()))
+    }
+
+    /// The level line between working rows `row − 1` and `row` (normal up).
+    fn level_line_above(row: usize, camera: &Camera) -> Line {
+        // Working row boundary `row − ½` is frame row `2·row − ½`.
+        let v = 2.0 * row as f32 - 0.5;
+        Line {
+            angle: core::f32::consts::PI,
+            rho: -(v - camera.cy) / camera.fy,
+        }
+    }
+
+    /// Sky at 180 with a bar of rows `bar` at 4 (a little noise), hazy ground below row 90.
+    fn sky_with_bar(bar: core::ops::Range<usize>) -> impl Fn(usize, usize) -> u8 {
+        move |r, c| {
+            if bar.contains(&r) {
+                (4 + (r * 7 + c * 13) % 9) as u8
+            } else if r < 90 {
+                180
+            } else {
+                120
+            }
+        }
+    }
+
+    #[test]
+    fn both_edges_of_a_black_bar_across_the_frame_are_along_it() {
+        let (grey, geo, camera) = image(sky_with_bar(60..68));
+        assert!(along_blank_bar(
+            &grey,
+            geo,
+            &camera,
+            level_line_above(60, &camera)
+        ));
+        assert!(along_blank_bar(
+            &grey,
+            geo,
+            &camera,
+            level_line_above(68, &camera)
+        ));
+        // Two rows off either way still finds the edge; four does not.
+        assert!(along_blank_bar(
+            &grey,
+            geo,
+            &camera,
+            level_line_above(62, &camera)
+        ));
+        assert!(!along_blank_bar(
+            &grey,
+            geo,
+            &camera,
+            level_line_above(56, &camera)
+        ));
+        // The horizon under the bar is not along it.
+        assert!(!along_blank_bar(
+            &grey,
+            geo,
+            &camera,
+            level_line_above(90, &camera)
+        ));
+    }
+
+    #[test]
+    fn a_line_leaning_from_the_rows_is_not_along_a_bar() {
+        let (grey, geo, camera) = image(sky_with_bar(60..68));
+        let mut line = level_line_above(60, &camera);
+        line.angle += 1f32.to_radians();
+        assert!(!along_blank_bar(&grey, geo, &camera, line));
+    }
+
+    #[test]
+    fn dark_ground_down_to_the_frame_edge_is_no_bar() {
+        let (grey, geo, camera) = image(sky_with_bar(60..120));
+        assert!(!along_blank_bar(
+            &grey,
+            geo,
+            &camera,
+            level_line_above(60, &camera)
+        ));
+    }
+
+    #[test]
+    fn a_band_thicker_than_a_bar_is_none() {
+        // 16 rows: over an eighth of 120.
+        let (grey, geo, camera) = image(sky_with_bar(60..76));
+        assert!(!along_blank_bar(
+            &grey,
+            geo,
+            &camera,
+            level_line_above(60, &camera)
+        ));
+        let (grey, geo, camera) = image(sky_with_bar(60..75));
+        assert!(along_blank_bar(
+            &grey,
+            geo,
+            &camera,
+            level_line_above(60, &camera)
+        ));
+    }
+
+    #[test]
+    fn a_dark_tree_line_or_a_bar_with_scene_through_it_is_none() {
+        // A level tree line at 40 levels, and a black bar with lit fields through a tenth of it.
+        let (grey, geo, camera) = image(|r, _| if (60..68).contains(&r) { 40 } else { 180 });
+        assert!(!along_blank_bar(
+            &grey,
+            geo,
+            &camera,
+            level_line_above(60, &camera)
+        ));
+        let (grey, geo, camera) = image(|r, c| match r {
+            60..68 if c % 10 == 0 => 150,
+            60..68 => 4,
+            _ => 180,
+        });
+        assert!(!along_blank_bar(
+            &grey,
+            geo,
+            &camera,
+            level_line_above(60, &camera)
+        ));
+    }
+}
