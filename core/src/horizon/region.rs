@@ -137,6 +137,9 @@ fn best_of_bins(
 
 /// Directions of the fine search.
 const FINE_DIRECTIONS: usize = 2 * FINE_STEPS as usize + 1;
+/// Margin (normalised units, 0.03 px at 320 px and 60°) that [`fine_splits`] adds to a
+/// sample's swing: far above the f32 rounding of distances at the frame's scale (10^-7).
+const FINE_ROUNDING: f32 = 1e-4;
 
 /// [`best_split`] over [`FINE_BINS`] bins from `start` at each of the fine search's
 /// directions around `angle` (`angle + j·FINE_STEP`, `j` from `−FINE_STEPS`), in one pass
@@ -162,9 +165,8 @@ fn fine_splits(
     let (s0, c0) = (libm::sinf(angle), libm::cosf(angle));
     let end = start + FINE_BINS as f32 * width;
     // The largest turn (radians) with a tenth to spare, applied to |x| + |y| (at least the
-    // radius), and a margin far above f32 rounding at the frame's scale.
+    // radius), plus [`FINE_ROUNDING`].
     let turn = 1.1 * FINE_STEPS as f32 * FINE_STEP;
-    const ROUNDING: f32 = 1e-4;
     let inverse = 1.0 / width;
     let mut below_all = Bin::default();
     let mut below = [Bin::default(); FINE_DIRECTIONS];
@@ -174,7 +176,7 @@ fn fine_splits(
             continue;
         }
         let d0 = sample.x * s0 + sample.y * c0;
-        let swing = turn * (libm::fabsf(sample.x) + libm::fabsf(sample.y)) + ROUNDING;
+        let swing = turn * (libm::fabsf(sample.x) + libm::fabsf(sample.y)) + FINE_ROUNDING;
         if d0 < start - swing {
             below_all.add(sample);
             continue;
