@@ -708,8 +708,6 @@ impl HorizonDetector {
         // lines (a parallel profile smears a turned horizon's step). The edge it was climbed
         // from is kept: it is not the turned line's rival.
         let mut turned_from = None;
-        // A sharp ground edge that no search climbed from, the profile still rising above it.
-        let mut stayed_on_ground_edge = false;
         if !climbed && !from_region && sharp_ground_edge(&context, &chosen, sky_brighter) {
             let turned = higher_edge(
                 &context,
@@ -749,8 +747,6 @@ impl HorizonDetector {
                 profile = across(upper.line, sky_ward);
                 chosen = self.tracked(upper);
                 climbed = true;
-            } else {
-                stayed_on_ground_edge = profile.rises_above();
             }
         }
         // A dark band under a bright sky: the chosen edge steps down towards the side taken
@@ -974,15 +970,6 @@ impl HorizonDetector {
         // sky above it adds.
         if on_ramp && profile.at_foot_of_ramp(RAMP_EXTENT) {
             confidence *= RAMP_CONFIDENCE;
-        }
-        // A sharp ground edge with hazy ground above it (see `sharp_ground_edge`) that no
-        // search climbed from, the profile still rising above it: the horizon above may be a
-        // step in colour with none in luma (`synth` `oblique-ground-edge` seed 2, frames 0–2:
-        // beige haze up to a pale blue sky, read 13–14° low with confidence 0.46–1.0). Above
-        // a horizon whose glow is too pale for the blue test the profile falls instead
-        // (`exposure`'s tinted skies).
-        if stayed_on_ground_edge {
-            confidence *= GROUND_EDGE_CONFIDENCE;
         }
         // The edge of a bar of blanked rows chosen for want of another line (see `sync_bar`).
         if sync_bar::along_blank_bar(ws.grey, geo, &camera, chosen.line) {
@@ -1452,10 +1439,6 @@ const RAMP_CONFIDENCE: f32 = 0.25;
 /// dim light's ramps 16–37; above real horizons the sky may go on brightening as far, but
 /// by less than across the horizon (`at_foot_of_ramp`'s second test).
 const RAMP_EXTENT: f32 = 0.1;
-/// Share of its confidence a line keeps on a sharp ground edge the search did not climb from,
-/// under a profile still rising: on `synth` `oblique-ground-edge` seeds 1 and 2, 8 frames
-/// passed the gate 6–14° low with confidence 0.46–1.0.
-const GROUND_EDGE_CONFIDENCE: f32 = 0.25;
 /// Share of its confidence a line along a bar of blanked rows keeps (see `sync_bar`): on
 /// `synth` `black-stripes` seed 2, frame 29's bar edge (9° off) was its only candidate.
 const SYNC_BAR_CONFIDENCE: f32 = 0.25;
