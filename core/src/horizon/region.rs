@@ -96,18 +96,24 @@ fn best_split<const N: usize>(
             continue;
         }
         let d = sample.x * s + sample.y * c;
-        let f = (d - start) * inverse;
-        if f < 0.0 {
-            below.add(sample);
-        } else if f < N as f32
-            // Through i32: `f` is in [0, N), and the 64-bit saturating conversion costs twice
-            // the instructions.
-            && let Some(b) = bins.get_mut(f as i32 as usize)
-        {
-            b.add(sample);
-        }
+        add_at(&mut bins, &mut below, (d - start) * inverse, sample);
     }
     best_of_bins(&bins, below, total, start, width)
+}
+
+/// Adds `sample` to the bin `f` (its distance from the first bin's start, in bins) falls in,
+/// to `below` under the first, and nowhere past the last.
+#[inline]
+fn add_at<const N: usize>(bins: &mut [Bin; N], below: &mut Bin, f: f32, sample: &Sample) {
+    if f < 0.0 {
+        below.add(sample);
+    } else if f < N as f32
+        // Through i32: `f` is in [0, N), and the 64-bit saturating conversion costs twice the
+        // instructions.
+        && let Some(b) = bins.get_mut(f as i32 as usize)
+    {
+        b.add(sample);
+    }
 }
 
 /// The best split of binned samples: `below` the first bin, `bins` from `start` in steps of
@@ -185,14 +191,7 @@ fn fine_splits(
             continue;
         }
         for ((&(s, c), below), bins) in directions.iter().zip(&mut below).zip(&mut bins) {
-            let f = (sample.x * s + sample.y * c - start) * inverse;
-            if f < 0.0 {
-                below.add(sample);
-            } else if f < FINE_BINS as f32
-                && let Some(b) = bins.get_mut(f as i32 as usize)
-            {
-                b.add(sample);
-            }
+            add_at(bins, below, (sample.x * s + sample.y * c - start) * inverse, sample);
         }
     }
     core::array::from_fn(|i| {
