@@ -191,7 +191,8 @@ fn fine_splits(
             continue;
         }
         for ((&(s, c), below), bins) in directions.iter().zip(&mut below).zip(&mut bins) {
-            add_at(bins, below, (sample.x * s + sample.y * c - start) * inverse, sample);
+            let f = (sample.x * s + sample.y * c - start) * inverse;
+            add_at(bins, below, f, sample);
         }
     }
     core::array::from_fn(|i| {
