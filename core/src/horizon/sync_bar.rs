@@ -92,6 +92,13 @@ mod tests {
         }
     }
 
+    /// Whether the level line between working rows `row − 1` and `row` of `level`'s image is
+    /// along a blank bar.
+    fn bar_edge_above(level: impl Fn(usize, usize) -> u8, row: usize) -> bool {
+        let (grey, geo, camera) = image(level);
+        along_blank_bar(&grey, geo, &camera, level_line_above(row, &camera))
+    }
+
     /// Sky at 180 with a bar of rows `bar` at 4 (a little noise), hazy ground below row 90.
     fn sky_with_bar(bar: core::ops::Range<usize>) -> impl Fn(usize, usize) -> u8 {
         move |r, c| {
@@ -107,39 +114,14 @@ mod tests {
 
     #[test]
     fn both_edges_of_a_black_bar_across_the_frame_are_along_it() {
-        let (grey, geo, camera) = image(sky_with_bar(60..68));
-        assert!(along_blank_bar(
-            &grey,
-            geo,
-            &camera,
-            level_line_above(60, &camera)
-        ));
-        assert!(along_blank_bar(
-            &grey,
-            geo,
-            &camera,
-            level_line_above(68, &camera)
-        ));
+        let bar = || sky_with_bar(60..68);
+        assert!(bar_edge_above(bar(), 60));
+        assert!(bar_edge_above(bar(), 68));
         // Two rows off either way still finds the edge; four does not.
-        assert!(along_blank_bar(
-            &grey,
-            geo,
-            &camera,
-            level_line_above(62, &camera)
-        ));
-        assert!(!along_blank_bar(
-            &grey,
-            geo,
-            &camera,
-            level_line_above(56, &camera)
-        ));
+        assert!(bar_edge_above(bar(), 62));
+        assert!(!bar_edge_above(bar(), 56));
         // The horizon under the bar is not along it.
-        assert!(!along_blank_bar(
-            &grey,
-            geo,
-            &camera,
-            level_line_above(90, &camera)
-        ));
+        assert!(!bar_edge_above(bar(), 90));
     }
 
     #[test]
@@ -152,54 +134,26 @@ mod tests {
 
     #[test]
     fn dark_ground_down_to_the_frame_edge_is_no_bar() {
-        let (grey, geo, camera) = image(sky_with_bar(60..120));
-        assert!(!along_blank_bar(
-            &grey,
-            geo,
-            &camera,
-            level_line_above(60, &camera)
-        ));
+        assert!(!bar_edge_above(sky_with_bar(60..120), 60));
     }
 
     #[test]
     fn a_band_thicker_than_a_bar_is_none() {
         // 16 rows: over an eighth of 120.
-        let (grey, geo, camera) = image(sky_with_bar(60..76));
-        assert!(!along_blank_bar(
-            &grey,
-            geo,
-            &camera,
-            level_line_above(60, &camera)
-        ));
-        let (grey, geo, camera) = image(sky_with_bar(60..75));
-        assert!(along_blank_bar(
-            &grey,
-            geo,
-            &camera,
-            level_line_above(60, &camera)
-        ));
+        assert!(!bar_edge_above(sky_with_bar(60..76), 60));
+        assert!(bar_edge_above(sky_with_bar(60..75), 60));
     }
 
     #[test]
     fn a_dark_tree_line_or_a_bar_with_scene_through_it_is_none() {
         // A level tree line at 40 levels, and a black bar with lit fields through a tenth of it.
-        let (grey, geo, camera) = image(|r, _| if (60..68).contains(&r) { 40 } else { 180 });
-        assert!(!along_blank_bar(
-            &grey,
-            geo,
-            &camera,
-            level_line_above(60, &camera)
-        ));
-        let (grey, geo, camera) = image(|r, c| match r {
+        let tree_line = |r: usize, _| if (60..68).contains(&r) { 40 } else { 180 };
+        assert!(!bar_edge_above(tree_line, 60));
+        let lit_through = |r: usize, c: usize| match r {
             60..68 if c % 10 == 0 => 150,
             60..68 => 4,
             _ => 180,
-        });
-        assert!(!along_blank_bar(
-            &grey,
-            geo,
-            &camera,
-            level_line_above(60, &camera)
-        ));
+        };
+        assert!(!bar_edge_above(lit_through, 60));
     }
 }
