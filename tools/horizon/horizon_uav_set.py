@@ -19,11 +19,12 @@ atan(-slope), and the pitch follows from the line's height at the principal poin
 shows the horizon (visible = 1). Needs opencv-python-headless (JPEG decoding).
 """
 import csv
-import math
 import os
 import sys
 
 import cv2
+
+import real_set
 
 
 def main():
@@ -35,26 +36,15 @@ def main():
             rows = list(csv.DictReader(f))
     except OSError as e:
         sys.exit(f"horizon_uav_set: {e}")
-    os.makedirs(out, exist_ok=True)
     width = height = 480
-    fx = fy = (width / 2) / math.tan(math.radians(30))
-    cx, cy = (width - 1) / 2, (height - 1) / 2
-    with open(os.path.join(out, "camera.toml"), "w") as f:
-        f.write(f"width = {width}\nheight = {height}\nfx = {fx}\nfy = {fy}\ncx = {cx}\ncy = {cy}\nk1 = 0.0\nk2 = 0.0\n")
-    truth = ["frame,roll_deg,pitch_deg,visible"]
-    for i, row in enumerate(rows):
+    writer = real_set.Writer(out, width, height)
+    for row in rows:
         path = os.path.join(source, "images", row["filename"])
         image = cv2.imread(path, cv2.IMREAD_COLOR)
         if image is None or image.shape[:2] != (height, width):
             sys.exit(f"horizon_uav_set: {path}: not a {width}x{height} image")
-        cv2.imwrite(os.path.join(out, f"frame_{i:06d}.png"), image)
-        slope, offset_px = float(row["slope"]), float(row["offset"]) * height
-        roll = math.atan2(-slope, 1.0)
-        pitch = math.atan(math.cos(roll) * (slope * cx + offset_px - cy) / fy)
-        truth.append(f"{i},{math.degrees(roll):.4f},{math.degrees(pitch):.4f},1")
-    with open(os.path.join(out, "truth.csv"), "w") as f:
-        f.write("\n".join(truth) + "\n")
-    print(f"{len(rows)} frames in {out}")
+        writer.add(image, float(row["slope"]), float(row["offset"]) * height)
+    writer.finish()
 
 
 if __name__ == "__main__":

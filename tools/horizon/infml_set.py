@@ -24,11 +24,12 @@ the pitch follows from the line's height at the principal point. Every frame sho
 (visible = 1). Needs opencv-python-headless (PNG decoding).
 """
 import json
-import math
 import os
 import sys
 
 import cv2
+
+import real_set
 
 LABELS = "test_data_5_test.json"
 
@@ -60,13 +61,8 @@ def main():
                         sys.exit(f"infml_set: {labels_path}:{number}: {e}")
     except OSError as e:
         sys.exit(f"infml_set: {e}")
-    os.makedirs(out, exist_ok=True)
     width, height = 384, 288
-    fx = fy = (width / 2) / math.tan(math.radians(30))
-    cx, cy = (width - 1) / 2, (height - 1) / 2
-    with open(os.path.join(out, "camera.toml"), "w") as f:
-        f.write(f"width = {width}\nheight = {height}\nfx = {fx}\nfy = {fy}\ncx = {cx}\ncy = {cy}\nk1 = 0.0\nk2 = 0.0\n")
-    truth = ["frame,roll_deg,pitch_deg,visible"]
+    writer = real_set.Writer(out, width, height)
     for i, row in enumerate(rows):
         try:
             path = os.path.join(source, row["raw_file"])
@@ -78,13 +74,8 @@ def main():
         image = cv2.imread(path, cv2.IMREAD_GRAYSCALE)
         if image is None or image.shape[:2] != (height, width):
             sys.exit(f"infml_set: {path}: not a {width}x{height} image")
-        cv2.imwrite(os.path.join(out, f"frame_{i:06d}.png"), image)
-        roll = math.atan2(-slope, 1.0)
-        pitch = math.atan(math.cos(roll) * (slope * cx + offset - cy) / fy)
-        truth.append(f"{i},{math.degrees(roll):.4f},{math.degrees(pitch):.4f},1")
-    with open(os.path.join(out, "truth.csv"), "w") as f:
-        f.write("\n".join(truth) + "\n")
-    print(f"{len(rows)} frames in {out}")
+        writer.add(image, slope, offset)
+    writer.finish()
 
 
 if __name__ == "__main__":
