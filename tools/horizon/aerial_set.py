@@ -560,6 +560,11 @@ def visible(bgr, camera, roll, pitch):
 def frame_of(cls, scene, flight, camera, i, rng, state):
     """One 8-bit BGR frame of the class."""
     fields = cls == "interference" or (cls == "mixed" and state["mixed_fields"])
+    if cls == "no-horizon" and (i // 8) % 2 == 1:
+        # Fog: the sky at the horizon is the fog itself.
+        scene.visibility = state["fog"]
+        scene.airlight_factor = 1.0
+        scene.cloud_cover = 0.0
     linear = render(scene, flight, camera, i, fields=fields)
     key = 1.0
     if cls == "exposure":
@@ -569,11 +574,6 @@ def frame_of(cls, scene, flight, camera, i, rng, state):
     if cls == "mixed":
         linear = add_glare(linear, scene, flight, camera, i, strength=rng.uniform(0.0, 0.6))
         key = 2 ** rng.uniform(-1.0, 1.2)
-    if cls == "no-horizon" and (i // 8) % 2 == 1:
-        # Fog: the sky at the horizon is the fog itself.
-        scene.visibility = state["fog"]
-        scene.airlight_factor = 1.0
-        scene.cloud_cover = 0.0
     exposed = expose(linear, rng, key)
     if cls == "sensor-noise":
         rgb = sensor_noise(exposed, rng, electrons=rng.uniform(60, 300))
