@@ -184,8 +184,7 @@ class Scene:
             self.sun_azimuth = float(rng.uniform(-0.45, 0.45))
         if cls == "sensor-noise":
             self.sun_elevation = math.radians(rng.uniform(2, 10))  # dusk
-        if cls == "no-horizon":
-            self.fog_runs = True
+        self.fog_above = None  # metres of fog above the camera (no-horizon's fog frames)
         s = np.array(
             [
                 math.cos(self.sun_elevation) * math.cos(self.sun_azimuth),
@@ -308,6 +307,10 @@ class Scene:
             through = np.exp(-t / (self.visibility * 3.0))[:, None]
             cloud = cloud * through + sky * (1 - through)
             sky = sky * (1 - density[:, None]) + cloud * density[:, None]
+        if self.fog_above is not None:
+            # Inside a fog layer: rays up cross `fog_above` metres of it before the sky.
+            through = np.exp(-3.912 / self.visibility * self.fog_above / np.maximum(-du[:, 2], 1e-3))[:, None]
+            sky = sky * through + self.horizon_sky(du) * self.airlight_factor * (1 - through)
         out[up] = sky
         # Ground.
         dg = d[ground_hit]
@@ -565,6 +568,7 @@ def frame_of(cls, scene, flight, camera, i, rng, state):
         scene.visibility = state["fog"]
         scene.airlight_factor = 1.0
         scene.cloud_cover = 0.0
+        scene.fog_above = state["fog"]
     linear = render(scene, flight, camera, i, fields=fields)
     key = 1.0
     if cls == "exposure":
@@ -613,11 +617,11 @@ def write_set(out, cls, width, height, seed, frames):
     os.makedirs(directory, exist_ok=True)
     with open(os.path.join(directory, "camera.toml"), "w") as f:
         f.write("".join(f"{k} = {v}\n" for k, v in camera.items()))
-    clear = (scene.visibility, scene.airlight_factor, scene.cloud_cover)
+    clear = (scene.visibility, scene.airlight_factor, scene.cloud_cover, scene.fog_above)
     vfov = math.degrees(2 * math.atan(height / 2 / camera["fy"]))
     lines = ["frame,roll_deg,pitch_deg,visible"]
     for i in range(frames):
-        scene.visibility, scene.airlight_factor, scene.cloud_cover = clear
+        scene.visibility, scene.airlight_factor, scene.cloud_cover, scene.fog_above = clear
         bgr = frame_of(cls, scene, flight, camera, i, rng, state)
         roll, pitch, _ = flight.frame_attitude(i, vfov)
         cv2.imwrite(os.path.join(directory, f"frame_{i:06d}.png"), bgr)
