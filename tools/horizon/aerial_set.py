@@ -149,8 +149,6 @@ class Scene:
     """One flight's world, light and weather, drawn from the class and the seed."""
 
     def __init__(self, rng, cls):
-        self.rng = rng
-        self.cls = cls
         self.noise = Noise(rng)
         self.altitude = float(rng.uniform(40, 450))
         self.visibility = float(rng.uniform(6e3, 60e3))
@@ -194,7 +192,6 @@ class Scene:
         )
         self.sun = s  # NED, pointing to the sun
         self.zenith_luminance = 1.0
-        self.ground_irradiance = 3.2 * math.sin(self.sun_elevation) + 0.9
 
     def perez(self, cos_zenith, gamma):
         a, b, c, d, e = PEREZ
@@ -236,14 +233,14 @@ class Scene:
 
     def ground(self, px, py, footprint):
         """Albedo (linear RGB) and whether it is water, at ground points (metres, NED)."""
-        rng_noise = self.noise
+        noise = self.noise
         ca, sa = math.cos(self.parcel_angle), math.sin(self.parcel_angle)
         gu = (ca * px + sa * py) / self.parcel_size
         gv = (-sa * px + ca * py) / (self.parcel_size * 0.7)
         # Parcels: lattice cells with warped borders; each cell's crop from its hash.
-        warp = (rng_noise.fbm(px, py, 400.0, 3, footprint) - 0.5) * 0.6
+        warp = (noise.fbm(px, py, 400.0, 3, footprint) - 0.5) * 0.6
         cu, cv = np.floor(gu + warp), np.floor(gv - warp)
-        crop = rng_noise.value(cu * 3.1 + 0.5, cv * 5.7 + 0.5)
+        crop = noise.value(cu * 3.1 + 0.5, cv * 5.7 + 0.5)
         palette = np.array(
             [
                 [0.045, 0.085, 0.025],
@@ -257,7 +254,7 @@ class Scene:
         index = np.minimum((crop * len(palette)).astype(np.int64), len(palette) - 1)
         albedo = palette[index]
         # Furrows along each parcel, fading with the footprint.
-        period = 3.0 + 4.0 * rng_noise.value(cu * 1.3, cv * 2.9)
+        period = 3.0 + 4.0 * noise.value(cu * 1.3, cv * 2.9)
         furrow = np.sin(2 * math.pi * (gu * self.parcel_size) / period)
         fade = np.exp(-((footprint / period) ** 2) * 4.0)
         albedo = albedo * (1 + 0.25 * furrow * fade)[..., None]
@@ -267,8 +264,8 @@ class Scene:
         hedge = smoothstep(4.0 + footprint, 0.0, border_m) * (crop > 0.4)
         albedo = albedo * (1 - 0.6 * hedge)[..., None]
         # Forest patches.
-        forest = smoothstep(0.58, 0.62, rng_noise.fbm(px - 7e3, py + 2e3, 900.0, 4, footprint))
-        tree = 0.6 + 0.8 * rng_noise.fbm(px, py, 12.0, 2, footprint)
+        forest = smoothstep(0.58, 0.62, noise.fbm(px - 7e3, py + 2e3, 900.0, 4, footprint))
+        tree = 0.6 + 0.8 * noise.fbm(px, py, 12.0, 2, footprint)
         albedo = albedo * (1 - forest[..., None]) + (np.array([0.025, 0.045, 0.018]) * tree[..., None]) * forest[..., None]
         # Roads.
         for ox, oy, angle in self.roads:
@@ -350,7 +347,7 @@ class Scene:
 
 
 class Flight:
-    def __init__(self, rng, cls, frames):
+    def __init__(self, rng, cls):
         self.roll_amp = [float(rng.uniform(5, 35)), float(rng.uniform(0, 12))]
         self.roll_period = [float(rng.uniform(6, 16)), float(rng.uniform(2, 5))]
         self.roll_phase = [float(rng.uniform(0, 6.3)), float(rng.uniform(0, 6.3))]
@@ -359,7 +356,6 @@ class Flight:
         self.pitch_period = float(rng.uniform(5, 12))
         self.yaw_rate = float(rng.uniform(-0.1, 0.1))
         self.cls = cls
-        self.frames = frames
 
     def attitude(self, t):
         roll = sum(a * math.sin(2 * math.pi * t / p + ph) for a, p, ph in zip(self.roll_amp, self.roll_period, self.roll_phase))
@@ -455,7 +451,7 @@ def add_glare(linear, scene, flight, camera, i, strength):
     return linear + glare
 
 
-def expose(linear, rng, key):
+def expose(linear, key):
     """Auto-exposure on the log-mean luminance, times the class's key; sRGB curve; clipping."""
     lum = luminance(linear)
     mean = math.exp(float(np.log(np.maximum(lum, 1e-4)).mean()))
@@ -578,7 +574,7 @@ def frame_of(cls, scene, flight, camera, i, rng, state):
     if cls == "mixed":
         linear = add_glare(linear, scene, flight, camera, i, strength=rng.uniform(0.0, 0.6))
         key = 2 ** rng.uniform(-1.0, 1.2)
-    exposed = expose(linear, rng, key)
+    exposed = expose(linear, key)
     if cls == "sensor-noise":
         rgb = sensor_noise(exposed, rng, electrons=rng.uniform(60, 300))
     elif cls == "mixed":
@@ -602,7 +598,7 @@ def write_set(out, cls, width, height, seed, frames):
     class_seed = [seed, CLASSES.index(cls), 0xAE71A1]
     rng_world = np.random.default_rng(class_seed)
     scene = Scene(rng_world, cls)
-    flight = Flight(rng_world, cls, frames)
+    flight = Flight(rng_world, cls)
     camera = make_camera(rng_world, cls, width, height)
     state = {
         "amp": float(rng_world.uniform(0.03, 0.12)),
