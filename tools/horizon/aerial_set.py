@@ -214,7 +214,7 @@ class Scene:
         white = np.array([0.93, 1.0, 1.08])
         white = white / luminance(white)
         chroma = blue * (1 - whiteness[..., None]) + white * whiteness[..., None]
-        # Thin air seen through less haze when the visibility is low: the sky whitens.
+        # The lower the visibility, the more haze between the camera and the sky: it whitens.
         haze_white = min(1.0, 8e3 / visibility) * 0.6
         chroma = chroma * (1 - haze_white) + white * haze_white
         sun_disc = (gamma < math.radians(0.27)) * 400.0
