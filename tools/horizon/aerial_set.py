@@ -15,7 +15,7 @@ detector, without reading either renderer's code, and of another construction th
   haze's reach capped at the geometric horizon's distance, airlight a little off the sky's own
   horizon colour;
 - camera: 3x3 (320 px) or 2x2 (640 px) stratified samples averaged per pixel about its centre,
-  a rolling shutter (each row its own instant), off-centre principal point, fx != fy, radial
+  a rolling shutter (each band of 8 rows its own instant), off-centre principal point, fx != fy, radial
   distortion inverted per pixel on some classes, auto-exposure, clipping, the sRGB curve;
 - degradations through real implementations: OpenCV's libjpeg at low quality with a
   half-resolution encoder, a Bayer mosaic with Poisson-Gaussian noise demosaicked by OpenCV
@@ -133,12 +133,19 @@ def undistort(xd, yd, k1, k2):
     return x, y
 
 
-def horizon_line_side(camera, roll, pitch, u, v):
-    """sin(roll) x + cos(roll) y - tan(pitch) in undistorted normalised coordinates: > 0 on
+def normalised(camera, u, v):
+    """Undistorted normalised coordinates of the (distorted) pixel positions u, v."""
+    return undistort((u - camera["cx"]) / camera["fx"], (v - camera["cy"]) / camera["fy"], camera["k1"], camera["k2"])
+
+
+def line_side(roll, pitch, x, y):
+    """sin(roll) x + cos(roll) y - tan(pitch) at undistorted normalised coordinates: > 0 on
     the ground's side (conventions)."""
-    x = (u - camera["cx"]) / camera["fx"]
-    y = (v - camera["cy"]) / camera["fy"]
     return math.sin(roll) * x + math.cos(roll) * y - math.tan(pitch)
+
+
+def vertical_fov_deg(camera):
+    return math.degrees(2 * math.atan(camera["height"] / 2 / camera["fy"]))
 
 
 # ----------------------------------------------------------------------------------------
@@ -392,25 +399,24 @@ def render(scene, flight, camera, i, fields=False):
     offsets = (np.arange(s) + 0.5) / s - 0.5
     u = (np.arange(w)[None, :, None, None] + offsets[None, None, None, :]).repeat(h, 0).repeat(s, 2)
     v = (np.arange(h)[:, None, None, None] + offsets[None, None, :, None]).repeat(w, 1).repeat(s, 3)
-    xd = (u - camera["cx"]) / camera["fx"]
-    yd = (v - camera["cy"]) / camera["fy"]
-    x, y = undistort(xd, yd, camera["k1"], camera["k2"])
+    x, y = normalised(camera, u, v)
     body = np.stack([np.ones_like(x), x, y], -1)
     body /= np.linalg.norm(body, axis=-1, keepdims=True)
     t0 = i * FRAME_SPACING_S
     out = np.zeros((h, w, s, s, 3))
     footprint_angle = 1.0 / (camera["fx"] * s)
     # Rows in bands of 8 share an instant (the rolling shutter at band resolution); an
-    # interlaced frame's odd rows are the second field, 20 ms later.
-    vfov = math.degrees(2 * math.atan(h / 2 / camera["fy"]))
+    # interlaced frame's odd rows are the second field, 20 ms later. Each band turns the
+    # frame's attitude by the flight's motion between the frame's instant and its own.
+    roll, pitch, yaw = flight.frame_attitude(i, vertical_fov_deg(camera))
+    at_frame = flight.attitude(t0)
     for band in range(0, h, 8):
         for parity in (0, 1) if fields else (None,):
             rows = np.arange(band, min(band + 8, h))
             if parity is not None:
                 rows = rows[rows % 2 == parity]
             t = t0 + ROW_READOUT_S * (rows.mean() - (h - 1) / 2) / h + (0.02 if parity == 1 else 0.0)
-            roll, pitch, yaw = flight.frame_attitude(i, vfov)
-            dr, dp, dy = (a - b for a, b in zip(flight.attitude(t), flight.attitude(t0)))
+            dr, dp, dy = (a - b for a, b in zip(flight.attitude(t), at_frame))
             r = body_to_world(roll + dr, pitch + dp, yaw + dy)
             origin = np.array([60.0 * t, 0.0, -scene.altitude])
             d = body[rows] @ r.T
@@ -423,8 +429,7 @@ def add_glare(linear, scene, flight, camera, i, strength):
     """Veiling glare, bloom, a six-pointed starburst and ghosts around the sun, in linear
     light, whether or not the sun is in the frame."""
     h, w = linear.shape[:2]
-    vfov = math.degrees(2 * math.atan(h / 2 / camera["fy"]))
-    roll, pitch, yaw = flight.frame_attitude(i, vfov)
+    roll, pitch, yaw = flight.frame_attitude(i, vertical_fov_deg(camera))
     r = body_to_world(roll, pitch, yaw)
     sun_body = r.T @ scene.sun
     if sun_body[0] <= 0.05:
@@ -452,11 +457,10 @@ def add_glare(linear, scene, flight, camera, i, strength):
 
 
 def expose(linear, key):
-    """Auto-exposure on the log-mean luminance, times the class's key; sRGB curve; clipping."""
-    lum = luminance(linear)
-    mean = math.exp(float(np.log(np.maximum(lum, 1e-4)).mean()))
-    scaled = np.clip(linear * (0.22 * key / mean), 0.0, 1.0)
-    return scaled
+    """Auto-exposure on the log-mean luminance, times the class's key, clipped at full scale
+    (still linear: the sRGB curve comes after the sensor)."""
+    mean = math.exp(float(np.log(np.maximum(luminance(linear), 1e-4)).mean()))
+    return np.clip(linear * (0.22 * key / mean), 0.0, 1.0)
 
 
 def srgb(x):
@@ -494,7 +498,7 @@ def video_link(bgr, rng, previous, quality, half):
     16-row slices concealed with the previous frame's, a band torn sideways now and then."""
     h, w = bgr.shape[:2]
     src = cv2.resize(bgr, (w // 2, h // 2), interpolation=cv2.INTER_AREA) if half else bgr
-    ok, data = cv2.imencode(".jpg", src, [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
+    _, data = cv2.imencode(".jpg", src, [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
     out = cv2.imdecode(data, cv2.IMREAD_COLOR)
     if half:
         out = cv2.resize(out, (w, h), interpolation=cv2.INTER_LINEAR)
@@ -537,11 +541,7 @@ def visible(bgr, camera, roll, pitch):
     h, w = bgr.shape[:2]
     grey = cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY).astype(np.float64)
     vv, uu = np.mgrid[0:h, 0:w].astype(np.float64)
-    x = (uu - camera["cx"]) / camera["fx"]
-    y = (vv - camera["cy"]) / camera["fy"]
-    # Distorted pixels: undistort for the line test.
-    x, y = undistort(x, y, camera["k1"], camera["k2"])
-    side = (math.sin(roll) * x + math.cos(roll) * y - math.tan(pitch)) * camera["fy"]
+    side = line_side(roll, pitch, *normalised(camera, uu, vv)) * camera["fy"]
     ground = (side > 1) & (side <= 3)
     sky = (side < -1) & (side >= -3)
     if ground.sum() < 20 or sky.sum() < 20:
@@ -614,7 +614,7 @@ def write_set(out, cls, width, height, seed, frames):
     with open(os.path.join(directory, "camera.toml"), "w") as f:
         f.write("".join(f"{k} = {v}\n" for k, v in camera.items()))
     clear = (scene.visibility, scene.airlight_factor, scene.cloud_cover, scene.fog_above)
-    vfov = math.degrees(2 * math.atan(height / 2 / camera["fy"]))
+    vfov = vertical_fov_deg(camera)
     lines = ["frame,roll_deg,pitch_deg,visible"]
     for i in range(frames):
         scene.visibility, scene.airlight_factor, scene.cloud_cover, scene.fog_above = clear
@@ -637,8 +637,8 @@ def check():
         roll, pitch = rng.uniform(-1.2, 1.2), rng.uniform(-0.4, 0.4)
         r = body_to_world(roll, pitch, rng.uniform(-3, 3))
         u, v = rng.uniform(0, 320), rng.uniform(0, 240)
-        x, y = undistort(np.array([(u - cam["cx"]) / cam["fx"]]), np.array([(v - cam["cy"]) / cam["fy"]]), cam["k1"], cam["k2"])
-        side = math.sin(roll) * x[0] + math.cos(roll) * y[0] - math.tan(pitch)
+        x, y = normalised(cam, np.array([u]), np.array([v]))
+        side = line_side(roll, pitch, x[0], y[0])
         if abs(side) < 1e-6:
             continue
         d = r @ np.array([1.0, x[0], y[0]])
