@@ -5,7 +5,7 @@
 //! baseline: see tests/opencv.rs).
 
 use std::path::PathBuf;
-use std::process::Command;
+use std::process::{Command, Output};
 
 fn python() -> String {
     std::env::var("SKYFRAME_HORIZON_PYTHON").unwrap_or_else(|_| "python3".into())
@@ -15,6 +15,17 @@ fn script() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("aerial_set.py")
 }
 
+/// The standard output of a run that must have succeeded (else its output and errors).
+fn succeeded(out: Output) -> String {
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert!(
+        out.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    stdout
+}
+
 #[test]
 fn aerial_rays_fall_on_the_ground_side_of_the_conventions_line() {
     let out = Command::new(python())
@@ -22,12 +33,7 @@ fn aerial_rays_fall_on_the_ground_side_of_the_conventions_line() {
         .arg("--check")
         .output()
         .expect("runs python");
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success(),
-        "{stdout}{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let stdout = succeeded(out);
     assert!(
         stdout.contains("0 of 200 rays on the wrong side"),
         "{stdout}"
@@ -46,11 +52,7 @@ fn bench_scores_an_aerial_set_against_its_truth() {
         ])
         .output()
         .expect("runs python");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    succeeded(out);
     let set = dir.join("clean_320");
     let truth = std::fs::read_to_string(set.join("truth.csv")).expect("truth.csv");
     assert_eq!(truth.lines().count(), 4, "{truth}");
@@ -63,12 +65,7 @@ fn bench_scores_an_aerial_set_against_its_truth() {
         .output()
         .expect("runs bench");
     let _ = std::fs::remove_dir_all(&dir);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let report: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON");
+    let report: serde_json::Value = serde_json::from_str(&succeeded(out)).expect("JSON");
     let sets = report["accuracy"].as_array().expect("accuracy");
     let aerial = sets
         .iter()
