@@ -42,6 +42,11 @@ pub struct Accuracy {
     /// ([`gate`]) but is wrong: more than 2° off, or a line where no horizon can be seen. A
     /// detector without a confidence claims every answer.
     pub false_confident_rate: f32,
+    /// Of the frames `false_confident_rate` counts, those the truth marks without a visible
+    /// horizon whose answer is nevertheless within 2° of the truth's line: a soft horizon
+    /// (a haze, a coded link) whose step a few pixels either side is under the generator's
+    /// threshold, found where it is. A count, to tell them from wrong lines.
+    pub confident_near_hidden: usize,
     /// Share of the frames with a visible horizon whose answer is within 2° and passes the
     /// estimator's gate: what the estimator can use (a detector without a confidence: its
     /// share within 2°).
@@ -85,7 +90,7 @@ pub fn evaluate(answers: &[Answer], truths: &[Truth]) -> Accuracy {
     let (mut roll_signed, mut pitch_signed) = (Vec::new(), Vec::new());
     let (mut within1, mut within2, mut within5) = (0, 0, 0);
     let (mut wrong, mut wrong_confident, mut false_confident) = (0, 0, 0);
-    let (mut confident, mut usable) = (0, 0);
+    let (mut confident, mut usable, mut near_hidden) = (0, 0, 0);
     let has_confidence = answers.iter().any(|a| a.confidence.is_some());
     for (a, t) in answers.iter().zip(truths) {
         let Some((roll, pitch)) = a.attitude else {
@@ -95,13 +100,14 @@ pub fn evaluate(answers: &[Answer], truths: &[Truth]) -> Accuracy {
             confident += 1;
         }
         let claims = a.confidence.is_none_or(|c| c >= gate);
-        if !t.visible {
-            false_confident += usize::from(claims);
-            continue;
-        }
         let rs = signed_roll_error_deg(roll, t.roll_deg);
         let ps = pitch - t.pitch_deg;
         let (re, pe) = (rs.abs(), ps.abs());
+        if !t.visible {
+            false_confident += usize::from(claims);
+            near_hidden += usize::from(claims && re.max(pe) <= FALSE_DEG);
+            continue;
+        }
         roll_signed.push(rs);
         pitch_signed.push(ps);
         roll_errors.push(re);
@@ -145,6 +151,7 @@ pub fn evaluate(answers: &[Answer], truths: &[Truth]) -> Accuracy {
         } else {
             0.0
         },
+        confident_near_hidden: near_hidden,
         usable: share(usable),
     }
 }
@@ -187,6 +194,8 @@ mod tests {
         assert_eq!(a.usable, Some(0.25));
         assert_eq!(a.within_2deg, Some(0.5));
         assert!((a.false_confident_rate - 0.4).abs() < 1e-6);
+        // Frame 3 has no horizon to see but is answered on the truth's line.
+        assert_eq!(a.confident_near_hidden, 1);
         // Without a confidence every answer claims: usable is the share within 2°.
         let plain: Vec<Answer> = answers
             .iter()
@@ -196,5 +205,29 @@ mod tests {
             })
             .collect();
         assert_eq!(evaluate(&plain, &truths).usable, Some(0.5));
+    }
+
+    /// A confident answer on a frame without a visible horizon is near it only within 2° of
+    /// roll and of pitch, and counts only past the gate.
+    #[test]
+    fn near_hidden_counts_confident_answers_on_the_line_only() {
+        let truth = Truth {
+            roll_deg: 10.0,
+            pitch_deg: 2.0,
+            visible: false,
+        };
+        let answer = |roll: f32, pitch: f32, confidence: f32| Answer {
+            attitude: Some((roll, pitch)),
+            confidence: Some(confidence),
+        };
+        let answers = [
+            answer(11.5, 3.5, 0.9),
+            answer(12.5, 2.0, 0.9),
+            answer(10.0, 4.5, 0.9),
+            answer(10.0, 2.0, 0.1),
+        ];
+        let a = evaluate(&answers, &[truth; 4]);
+        assert_eq!(a.confident_near_hidden, 1);
+        assert!((a.false_confident_rate - 0.75).abs() < 1e-6);
     }
 }
