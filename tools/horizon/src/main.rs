@@ -76,7 +76,7 @@ enum Command {
         /// png/pgm: one file per frame (`frame_000000.png`); y4m: one `frames.y4m` stream.
         #[arg(long, value_enum, default_value = "png")]
         format: SynthFormat,
-        /// Render with the held-out generator (`terrain`) instead, this class of it
+        /// Render with the second generator (`terrain`) instead, this class of it
         /// (--degradation is then ignored).
         #[arg(long, value_enum)]
         terrain: Option<Class>,

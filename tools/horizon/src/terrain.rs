@@ -1,5 +1,6 @@
-//! The second, held-out generator ("terrain"): a different construction from [`crate::synth`]
-//! so that a detector tuned on one is scored honestly on the other. Nothing here is shared
+//! The second generator ("terrain"): a different construction from [`crate::synth`], held
+//! out (only scored) until the eleventh session and tuned on since, when `aerial_set.py`
+//! became the held-out one (docs/horizon.md). Nothing here is shared
 //! with `synth` but the camera model and the image type.
 //!
 //! | | `synth` | `terrain` |
@@ -22,7 +23,7 @@ use clap::ValueEnum;
 use skyframe_core::horizon::Camera;
 use std::f32::consts::PI;
 
-/// Classes of the held-out set.
+/// Classes of the `terrain` sets (and of `aerial_set.py`'s).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, ValueEnum)]
 pub enum Class {
     /// Haze, clouds, fields; nothing added.
