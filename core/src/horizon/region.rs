@@ -334,12 +334,11 @@ fn top_profile(
 ) -> [Bins; 2] {
     let scale = geo.scale as f32;
     let (nx, ny) = (libm::sinf(angle), libm::cosf(angle));
-    // Pixel counts and luma sums in integers, one more bin for the pixels outside: a bin holds
-    // a row or two of the working image, far under 2^24 / 255 pixels, so adding them as f32
-    // one at a time would be exact and give the same values; in integers the adds do not wait
-    // on each other's rounding.
-    let mut counts = [[0u32; TOP_BINS + 1]; 2];
-    let mut sums = [[0u32; TOP_BINS + 1]; 2];
+    // Pixel counts and luma sums in integers: a bin holds a row or two of the working image,
+    // far under 2^24 / 255 pixels, so adding them as f32 one at a time would be exact and give
+    // the same values; in integers the adds do not wait on each other's rounding.
+    let mut counts = [[0u32; TOP_BINS]; 2];
+    let mut sums = [[0u32; TOP_BINS]; 2];
     // Bin of a working pixel: its sky-ward distance in rho steps, offset by the reach and
     // rounded; linear along a row, as is the place along the line.
     let inverse = sky_ward / rho_step;
@@ -370,22 +369,48 @@ fn top_profile(
                 ..((a.max(b) + 1.0).clamp(0.0, width) as usize)
         };
         let first = columns.start;
-        for (i, &value) in row.get(columns).unwrap_or(&[]).iter().enumerate() {
-            let column = (first + i) as u32 as f32;
-            let f = row_start + column * along_row;
-            let half = usize::from(line_start + column * along_line_per_column >= 0.0);
-            // NaN goes outside too.
-            let index = if (0.0..TOP_BINS as f32).contains(&f) {
-                (f as i32 as usize).min(TOP_BINS)
-            } else {
-                TOP_BINS
+        let pixels = row.get(columns).unwrap_or(&[]);
+        // The half a pixel falls in changes once along the row (its place along the line is
+        // monotone in the column, rounding included): the row is cut there and each part
+        // binned into its half's bins without testing each pixel.
+        let second_half =
+            |i: usize| line_start + (first + i) as u32 as f32 * along_line_per_column >= 0.0;
+        let rising = along_line_per_column >= 0.0;
+        let cut = first_where(pixels.len(), |i| second_half(i) == rising);
+        let (before, after) = pixels.split_at(cut.min(pixels.len()));
+        let halves_in_order = if rising { [0, 1] } else { [1, 0] };
+        for ((part, offset), half) in [(before, 0), (after, cut)].into_iter().zip(halves_in_order) {
+            let (Some(counts), Some(sums)) = (counts.get_mut(half), sums.get_mut(half)) else {
+                continue;
             };
-            if let (Some(count), Some(sum)) = (
-                counts.get_mut(half).and_then(|c| c.get_mut(index)),
-                sums.get_mut(half).and_then(|s| s.get_mut(index)),
-            ) {
-                *count += 1;
-                *sum += u32::from(value);
+            // The pixels whose bin is inside the profile: again a run of the part, where the
+            // bin (monotone in the column) is in range. The others, NaN included, are left out.
+            let bin_at = |i: usize| row_start + (first + offset + i) as u32 as f32 * along_row;
+            let (start, end) = if along_row > 0.0 {
+                (
+                    first_where(part.len(), |i| bin_at(i) >= 0.0),
+                    first_where(part.len(), |i| bin_at(i) >= TOP_BINS as f32),
+                )
+            } else if along_row < 0.0 {
+                (
+                    first_where(part.len(), |i| bin_at(i) < TOP_BINS as f32),
+                    first_where(part.len(), |i| bin_at(i) < 0.0),
+                )
+            } else if (0.0..TOP_BINS as f32).contains(&bin_at(0)) {
+                (0, part.len())
+            } else {
+                (0, 0)
+            };
+            // Columns counted in f32 from the run's first: exact (far under 2^24), and the
+            // same values as converting each.
+            let mut column = (first + offset + start) as u32 as f32;
+            for &value in part.get(start..end).unwrap_or(&[]) {
+                let index = (row_start + column * along_row) as i32 as usize;
+                column += 1.0;
+                if let (Some(count), Some(sum)) = (counts.get_mut(index), sums.get_mut(index)) {
+                    *count += 1;
+                    *sum += u32::from(value);
+                }
             }
         }
     }
@@ -396,6 +421,21 @@ fn top_profile(
         }
     }
     halves
+}
+
+/// The first `i` in `0..n` where `holds` does, for a `holds` false then true along `0..n`
+/// (`n` when it never does).
+fn first_where(n: usize, holds: impl Fn(usize) -> bool) -> usize {
+    let (mut low, mut high) = (0, n);
+    while low < high {
+        let middle = low + (high - low) / 2;
+        if holds(middle) {
+            high = middle;
+        } else {
+            low = middle + 1;
+        }
+    }
+    low
 }
 
 /// The two halves' bins added: the profile over the whole line.
@@ -539,4 +579,87 @@ pub(crate) fn top_step(
         sky_ward_px: s,
         one_transition,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn first_where_finds_where_a_rising_test_starts_to_hold() {
+        for n in 0..20 {
+            for threshold in 0..=n + 1 {
+                let found = first_where(n, |i| i >= threshold);
+                assert_eq!(found, threshold.min(n), "n {n}, threshold {threshold}");
+            }
+        }
+    }
+
+    /// [`top_profile`] as it was written first, pixel by pixel: the bin and the half of each
+    /// pixel tested on its own.
+    fn top_profile_pixel_by_pixel(
+        grey: &[u8],
+        geo: Working,
+        camera: &Camera,
+        (angle, rho): (f32, f32),
+        rho_step: f32,
+        sky_ward: f32,
+    ) -> [Bins; 2] {
+        let scale = geo.scale as f32;
+        let (nx, ny) = (libm::sinf(angle), libm::cosf(angle));
+        let mut counts = [[0u32; TOP_BINS + 1]; 2];
+        let mut sums = [[0u32; TOP_BINS + 1]; 2];
+        let inverse = sky_ward / rho_step;
+        let along_row = nx * scale / camera.fx * inverse;
+        let along_line_per_column = ny * scale / camera.fx;
+        for (wy, row) in grey.chunks_exact(geo.width).take(geo.height).enumerate() {
+            let (u0, v) = geo.to_frame(0.0, wy as f32);
+            let (x0, y) = ((u0 - camera.cx) / camera.fx, (v - camera.cy) / camera.fy);
+            let row_start = (x0 * nx + y * ny - rho) * inverse + TOP_REACH as f32 + 0.5;
+            let line_start = x0 * ny - y * nx;
+            for (column, &value) in row.iter().enumerate() {
+                let column = column as u32 as f32;
+                let f = row_start + column * along_row;
+                let half = usize::from(line_start + column * along_line_per_column >= 0.0);
+                let index = if (0.0..TOP_BINS as f32).contains(&f) {
+                    (f as i32 as usize).min(TOP_BINS)
+                } else {
+                    TOP_BINS
+                };
+                counts[half][index] += 1;
+                sums[half][index] += u32::from(value);
+            }
+        }
+        let mut halves = [[(0.0f32, 0.0f32); TOP_BINS]; 2];
+        for h in 0..2 {
+            for i in 0..TOP_BINS {
+                halves[h][i] = (counts[h][i] as f32, sums[h][i] as f32);
+            }
+        }
+        halves
+    }
+
+    #[test]
+    fn the_profile_by_runs_of_pixels_is_the_profile_pixel_by_pixel() {
+        let geo = Working::with_scale(320, 240, 2);
+        let camera = Camera::ideal(320, 240, 60.0_f32.to_radians());
+        let grey: std::vec::Vec<u8> = (0..geo.width * geo.height)
+            .map(|i| ((i * 2_654_435_761usize) >> 13) as u8)
+            .collect();
+        let rho_step = geo.scale as f32 / camera.fx;
+        for angle_deg in [
+            -179.5f32, -90.0, -45.3, -3.0, 0.0, 0.7, 12.0, 60.0, 90.0, 135.0,
+        ] {
+            for rho in [-0.4f32, -0.05, 0.0, 0.13, 0.5] {
+                for sky_ward in [1.0, -1.0] {
+                    let direction = (angle_deg.to_radians(), rho);
+                    let fast = top_profile(&grey, geo, &camera, direction, rho_step, sky_ward);
+                    let reference = top_profile_pixel_by_pixel(
+                        &grey, geo, &camera, direction, rho_step, sky_ward,
+                    );
+                    assert_eq!(fast, reference, "angle {angle_deg}°, rho {rho}, {sky_ward}");
+                }
+            }
+        }
+    }
 }
