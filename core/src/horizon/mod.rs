@@ -411,8 +411,9 @@ impl HorizonDetector {
         // more than two working pixels (frames up to 400 px wide, see `blocks::deblock`): at
         // 320 px a block is four, and its borders draw a coded horizon's staircase as
         // separate level and upright edges (`terrain` `transmission` at 320×240, seeds
-        // 16–18: 0.52 / 0.82 / 0.40 within 2° before, 0.72 / 0.97 / 0.53 after). A frame
-        // binned coarser for noise keeps its blocks, whole in its working pixels.
+        // 16–18: 0.52 / 0.82 / 0.40 within 2° before, 0.68 / 0.97 / 0.53 after, with the
+        // confidence term below). A frame binned coarser for noise keeps its blocks, whole in
+        // its working pixels.
         edges::build_working_image(frame, base, ws.grey);
         let frame_grid = (base.scale <= 2 && blocks::may_show_blocks(ws.grey, base))
             .then(|| blocks::grid(frame));
@@ -1427,9 +1428,10 @@ const REGION_RECHECK_MARGIN: f32 = 1.15;
 /// 5.6–16.3. Between the codec's high and low qualities.
 const CODED_IN_BLOCKS: f32 = 2.7;
 /// ... and its blocks show across rows and across columns alike, each this many times more
-/// on the grid than off it ([`blocks::Grid::weaker_axis`]): on `synth` seed 1 at 320×240,
-/// 2.7 and more on `video-link`'s frames and 4.8 on `blocks`', 1.0–1.1 on `white-stripes`' and
-/// `black-stripes`' (their bars fall on the rows' grid, the combined figure up to 12).
+/// on the grid than off it ([`blocks::Grid::weaker_axis`]): on `synth` seed 1 at 320×240 (a
+/// numpy model of the figure), 2.7 or more on 95 % of `video-link`'s frames and 4.8 or more
+/// on 95 % of `blocks`', 1.0–1.1 on `white-stripes`' and `black-stripes`' (their bars fall on
+/// the rows' grid, the combined figure up to 12).
 const CODED_ON_BOTH_AXES: f32 = 2.0;
 /// How far above `profile::MIN_SIGNIFICANCE`, in its units, an edge line of a deblocked
 /// coded frame must be placed to keep all its confidence (none at the minimum).
