@@ -290,20 +290,31 @@ mod tests {
         })
     }
 
-    #[test]
-    fn deblocking_ramps_across_the_borders_and_keeps_each_blocks_inside() {
-        // Frame phase 4: borders between working pixels 1|2, 5|6, ... at scale 2.
-        let (width, height) = (24, 12);
-        let geo = Working::with_scale(2 * width, 2 * height, 2);
+    /// Sides of the working image the deblocking tests use (scale 2).
+    const WIDTH: usize = 24;
+    const HEIGHT: usize = 12;
+
+    /// [`flat_blocks`] (working phase 2) before and after [`deblock`] at scale 2, told the
+    /// frame's grid is at `frame_phase` on both axes.
+    fn deblocked(frame_phase: usize) -> (Vec<u8>, Vec<u8>, Grid) {
+        let geo = Working::with_scale(2 * WIDTH, 2 * HEIGHT, 2);
         let grid = Grid {
             contrast: 10.0,
             weaker_axis: 10.0,
-            column_phase: 4,
-            row_phase: 4,
+            column_phase: frame_phase,
+            row_phase: frame_phase,
         };
-        let before = flat_blocks(width, height, 2);
+        let before = flat_blocks(WIDTH, HEIGHT, 2);
         let mut after = before.clone();
         deblock(&mut after, geo, grid);
+        (before, after, grid)
+    }
+
+    #[test]
+    fn deblocking_ramps_across_the_borders_and_keeps_each_blocks_inside() {
+        // Frame phase 4: borders between working pixels 1|2, 5|6, ... at scale 2.
+        let (width, height) = (WIDTH, HEIGHT);
+        let (before, after, _) = deblocked(4);
         let at = |image: &[u8], x: usize, y: usize| i32::from(image[y * width + x]);
         for y in 0..height {
             for x in 1..width {
@@ -330,20 +341,10 @@ mod tests {
     #[test]
     fn a_border_inside_a_working_pixel_is_left_alone() {
         // Frame phase 3 at scale 2: each border cuts a working pixel in two.
-        let (width, height) = (24, 12);
-        let geo = Working::with_scale(2 * width, 2 * height, 2);
-        let grid = Grid {
-            contrast: 10.0,
-            weaker_axis: 10.0,
-            column_phase: 3,
-            row_phase: 3,
-        };
-        let before = flat_blocks(width, height, 2);
-        let mut after = before.clone();
-        deblock(&mut after, geo, grid);
+        let (before, mut after, grid) = deblocked(3);
         assert_eq!(after, before);
         // At scale 4 a block is two working pixels: nothing inside to keep.
-        let coarse = Working::with_scale(4 * width, 4 * height, 4);
+        let coarse = Working::with_scale(4 * WIDTH, 4 * HEIGHT, 4);
         deblock(
             &mut after,
             coarse,
