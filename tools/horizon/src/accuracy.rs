@@ -103,16 +103,16 @@ pub fn evaluate(answers: &[Answer], truths: &[Truth]) -> Accuracy {
         let rs = signed_roll_error_deg(roll, t.roll_deg);
         let ps = pitch - t.pitch_deg;
         let (re, pe) = (rs.abs(), ps.abs());
+        let worst = re.max(pe);
         if !t.visible {
             false_confident += usize::from(claims);
-            near_hidden += usize::from(claims && re.max(pe) <= FALSE_DEG);
+            near_hidden += usize::from(claims && worst <= FALSE_DEG);
             continue;
         }
         roll_signed.push(rs);
         pitch_signed.push(ps);
         roll_errors.push(re);
         pitch_errors.push(pe);
-        let worst = re.max(pe);
         within1 += usize::from(worst <= 1.0);
         within2 += usize::from(worst <= 2.0);
         within5 += usize::from(worst <= 5.0);
