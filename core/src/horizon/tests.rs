@@ -1398,3 +1398,73 @@ fn a_deep_blue_sky_over_a_bright_haze_is_trusted() {
         assert!(h.is_some_and(|h| h.confidence >= 0.5), "{h:?}");
     }
 }
+
+/// Full-resolution placement of `line` on a 320×240 grey frame, with the detector's search
+/// reach at 320 px (binned 2×: 3·2 + 3 px).
+fn place_on(camera: &Camera, grey: &[u8], line: HorizonLine) -> (HorizonLine, profile::Placement) {
+    let frame = Frame::grey(camera.width as usize, camera.height as usize, grey).expect("fits");
+    profile::place(&frame, camera, line, 9.0, true)
+}
+
+#[test]
+fn a_line_a_few_degrees_off_is_turned_to_the_edge_its_halves_find() {
+    // What the binned image gives on a noisy soft horizon: a line 3° off in roll. Its halves
+    // find the step about 4 px either side of it; the line through them, read again, has its
+    // edge stacked in one place and is kept.
+    let camera = camera_320();
+    let (roll, pitch) = (8.0 * DEG, 3.0 * DEG);
+    let mut grey = render_grey(
+        &camera,
+        roll,
+        pitch,
+        |_, _, d| {
+            if d > 0.0 { 95.0 } else { 175.0 }
+        },
+    );
+    add_noise(&mut grey, 4.0, 11);
+    for off in [3.0f32, -3.0, 4.5] {
+        let coarse = HorizonLine::from_attitude(roll + off * DEG, pitch);
+        let (placed, placement) = place_on(&camera, &grey, coarse);
+        assert_eq!(placement.halves, profile::Halves::Turned, "{off}° off");
+        let roll_error = wrap_angle(placed.camera_roll_rad - roll) / DEG;
+        let pitch_error = (placed.camera_pitch_rad() - pitch) / DEG;
+        assert!(
+            roll_error.abs() < 0.2 && pitch_error.abs() < 0.1,
+            "{off}° off: placed at roll error {roll_error:.2}°, pitch error {pitch_error:.2}°"
+        );
+    }
+    // Within the refinement's reach (1.7°) the halves confirm and refine the roll at once.
+    let coarse = HorizonLine::from_attitude(roll + 1.0 * DEG, pitch);
+    let (placed, placement) = place_on(&camera, &grey, coarse);
+    assert_eq!(placement.halves, profile::Halves::Confirmed);
+    assert!(wrap_angle(placed.camera_roll_rad - roll).abs() / DEG < 0.2);
+}
+
+#[test]
+fn a_horizon_broken_into_two_levels_contradicts_a_line_across_both() {
+    // The left half's horizon 10 px above the right half's (a ridge's end, a coast): a level
+    // line between them is neither half's, and no line through both halves' edges stacks
+    // either step. The roll is not the image's, and the placement says so.
+    let camera = camera_320();
+    let grey: Vec<u8> = (0..240)
+        .flat_map(|v| {
+            (0..320).map(move |u| {
+                let step = if u < 160 { 113 } else { 123 };
+                if v < step {
+                    180
+                } else if u < 160 {
+                    80
+                } else {
+                    120
+                }
+            })
+        })
+        .collect();
+    let level = HorizonLine::from_attitude(0.0, (118.0 - camera.cy) / camera.fy);
+    let (placed, placement) = place_on(&camera, &grey, level);
+    assert_eq!(placement.halves, profile::Halves::Contradicted);
+    assert!(
+        wrap_angle(placed.camera_roll_rad).abs() < 1e-6,
+        "the roll stays"
+    );
+}

@@ -1,0 +1,126 @@
+//! A tuning set passed through a real camera-and-link chain (tools/horizon/camera_chain.py:
+//! a Bayer sensor demosaicked by OpenCV, an analogue link, libjpeg at half resolution), and
+//! the bench's score of what comes out.
+//!
+//! The interpreter is `python3`, or `SKYFRAME_HORIZON_PYTHON` (numpy and OpenCV, as for the
+//! baseline: see tests/opencv.rs).
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn python() -> String {
+    std::env::var("SKYFRAME_HORIZON_PYTHON").unwrap_or_else(|_| "python3".into())
+}
+
+fn script() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("camera_chain.py")
+}
+
+fn bench() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_skyframe-horizon"))
+}
+
+/// The standard output of a run that must have succeeded (else its output and errors).
+fn succeeded(out: Output) -> String {
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert!(
+        out.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    stdout
+}
+
+/// `bench --real`'s accuracy of the set `dir`, whose name is `name`.
+fn score(dir: &Path, name: &str) -> serde_json::Value {
+    let out = bench()
+        .args(["bench", "--json", "--no-opencv", "--generator", "synth"])
+        .args(["--only", name, "--frames", "1", "--sizes", "320x240"])
+        .arg("--real")
+        .arg(dir)
+        .output()
+        .expect("runs bench");
+    let report: serde_json::Value = serde_json::from_str(&succeeded(out)).expect("JSON");
+    let sets = report["accuracy"].as_array().expect("accuracy");
+    sets.iter()
+        .find(|s| s["generator"] == "real" && s["set"] == name)
+        .unwrap_or_else(|| panic!("no set {name} in {report}"))["ours"]["accuracy"]
+        .clone()
+}
+
+/// `terrain` `clean` seed 16 at 320×240 through the whole chain (chain seed 34): the Bayer
+/// noise and the link's jitter scatter the binned image's edge points across the hazy
+/// horizon, and its line was 2–8° off in roll on a quarter of the frames, trusted on six.
+/// The halves of the full-resolution profile find the edge on either side of such a line:
+/// it is turned to them (`profile::place`), or trusted less when no clearer line runs
+/// through them. Within 2° 0.53 → 0.65, false confidence 0.15 → 0.00 (the turn alone: 0.65,
+/// 0.075).
+#[test]
+fn a_hazy_horizon_through_a_sensor_and_two_links_is_read_or_not_trusted() {
+    let dir = std::env::temp_dir().join(format!("skyframe-chain-test-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let out = bench()
+        .args(["bench", "--json", "--generator", "terrain", "--seed", "16"])
+        .args(["--only", "clean", "--sizes", "320x240", "--frames", "40"])
+        .args(["--python", &python(), "--keep"])
+        .arg(&dir)
+        .output()
+        .expect("runs bench");
+    succeeded(out);
+    let chained = dir.join("chain_clean_320");
+    let out = Command::new(python())
+        .arg(script())
+        .arg(dir.join("terrain-clean-320x240"))
+        .arg(&chained)
+        .args(["--stages", "bayer,analogue,jpeg-half", "--seed", "34"])
+        .output()
+        .expect("runs python");
+    succeeded(out);
+    let accuracy = score(&chained, "chain_clean_320");
+    let _ = std::fs::remove_dir_all(&dir);
+    eprintln!("{accuracy}");
+    let within = accuracy["within_2deg"].as_f64().expect("within_2deg");
+    let false_confident = accuracy["false_confident_rate"].as_f64().expect("rate");
+    assert!(within >= 0.6, "{within} within 2°");
+    assert!(
+        false_confident <= 0.05,
+        "{false_confident} false confidence"
+    );
+}
+
+/// Runs the chain on `input` with `stages`; its exit code and standard error.
+fn chain(input: &Path, stages: &str) -> (Option<i32>, String) {
+    let out = Command::new(python())
+        .arg(script())
+        .arg(input)
+        .arg(input.join("out"))
+        .args(["--stages", stages])
+        .output()
+        .expect("runs python");
+    (
+        out.status.code(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn the_chain_says_in_one_line_why_it_refuses() {
+    let dir = std::env::temp_dir().join(format!("skyframe-chain-bad-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let not_a_set = chain(&dir, "bayer");
+    std::fs::write(dir.join("camera.toml"), "width = 320\n").expect("write");
+    std::fs::write(dir.join("truth.csv"), "frame,roll_deg,pitch_deg\n").expect("write");
+    let no_frames = chain(&dir, "bayer");
+    let unknown_stage = chain(&dir, "bayer,fog");
+    let _ = std::fs::remove_dir_all(&dir);
+    for ((code, stderr), says) in [
+        (not_a_set, "camera.toml: missing"),
+        (no_frames, "no frame_NNNNNN.png frames"),
+        (unknown_stage, "unknown stage 'fog'"),
+    ] {
+        assert_eq!(code, Some(1), "{stderr}");
+        assert_eq!(stderr.lines().count(), 1, "{stderr}");
+        assert!(stderr.contains(says), "{stderr}");
+    }
+}
