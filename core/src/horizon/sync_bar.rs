@@ -18,7 +18,7 @@ const BLANK_ROW_SHARE: f32 = 0.95;
 const MAX_BAR_SHARE: f32 = 0.125;
 /// Most a bar's edge line leans from the frame's rows (sine of half a degree): the bar is
 /// rows of the frame.
-const LEVEL_SINE: f32 = 0.0087;
+pub(crate) const LEVEL_SINE: f32 = 0.0087;
 /// Working rows either side of the line searched for the bar's edge (the line is placed on
 /// the step between two rows, give or take the binning and the least-squares fit).
 const EDGE_REACH: isize = 2;

@@ -1,0 +1,171 @@
+//! A seam along the frame's rows. A digital link codes a frame in slices of whole block rows
+//! (16 rows in JPEG's 4:2:0 and H.264, 8 in JPEG's 4:4:4); it conceals a lost slice with the
+//! previous frame's, and a slice decoded out of step is torn sideways. Either way the frame is
+//! spliced along a block-row boundary, and the splice is a level step drawn across the whole
+//! width, which the edge stage can take for a level horizon (on the tuning sets passed through
+//! `tools/horizon/camera_chain.py`, a third of the trusted answers more than 2° wrong were
+//! such lines).
+//!
+//! Only boundaries on the 8-row grid are looked at. A splice elsewhere (`terrain`'s torn
+//! bands start on any row) is not a codec's, and a noiseless test horizon can fall on any
+//! row boundary as one hard step.
+//!
+//! What tells a splice from a horizon is how abruptly the frame changes: the rows either side
+//! of a splice are each the continuation of their own picture, so neighbouring rows differ
+//! little on both sides and a lot across it. A camera's optics spread even a sharp horizon
+//! over more than one row. And the two pictures do not match along the splice, so the step
+//! across it changes along the row; a noiseless synthetic horizon laid on a row boundary is
+//! one even step.
+
+use super::HorizonLine;
+use super::camera::Camera;
+use super::frame::{Frame, luma};
+use super::sync_bar::LEVEL_SINE;
+
+/// How many times more the two rows across a seam differ, on average over the width, than
+/// the two rows on either side of it do. On the tuning sets (with and without the camera-and-
+/// link chain) and Horizon-UAV, right level lines measured at most 2.6 (1.3 on the real
+/// frames) unless the frame was spliced there; the lines on splices 3.0–152.
+const SEAM_RATIO: f32 = 3.0;
+/// The block-row grid a codec's slices follow (8 and 16 rows).
+const BLOCK_ROWS: usize = 8;
+/// Least mean difference (luma levels) counted for the rows either side.
+const WITHIN_FLOOR: f32 = 0.5;
+/// Least mean deviation of the step across a seam from its mean along the row (luma
+/// levels): the splices measured 1.2 and more (a rolling bar's edge the least), the
+/// noiseless horizons of the unit tests 0.
+const UNEVEN_STEP: f32 = 1.0;
+
+/// Whether `line` (a horizon line of the full-resolution frame) runs along the frame's rows on
+/// a row boundary where the frame is spliced.
+pub(crate) fn along_row_seam(frame: &Frame<'_>, camera: &Camera, line: HorizonLine) -> bool {
+    let (s, c) = (
+        libm::sinf(line.camera_roll_rad),
+        libm::cosf(line.camera_roll_rad),
+    );
+    if libm::fabsf(s) > LEVEL_SINE {
+        return false;
+    }
+    // The row boundary nearest to where the line crosses the principal point's column: the
+    // boundary between rows r − 1 and r is at r − ½ (pixel centres at the integers).
+    let (_, v) = camera.project(0.0, line.offset / c);
+    let boundary = libm::roundf(v + 0.5);
+    if !boundary.is_finite() || boundary < 2.0 {
+        return false;
+    }
+    let r = boundary as usize;
+    let (w, h) = (frame.width(), frame.height());
+    if w == 0 || r + 1 >= h || r % BLOCK_ROWS != 0 {
+        return false;
+    }
+    let luma_at = |u: usize, v: usize| {
+        let (red, green, blue) = frame.rgb_at(u, v);
+        f32::from(luma(red, green, blue))
+    };
+    let (mut across, mut step, mut above, mut below) = (0.0f32, 0.0f32, 0.0f32, 0.0f32);
+    for u in 0..w {
+        let [a, b, c, d] = [r - 2, r - 1, r, r + 1].map(|v| luma_at(u, v));
+        above += libm::fabsf(a - b);
+        across += libm::fabsf(b - c);
+        step += b - c;
+        below += libm::fabsf(c - d);
+    }
+    let width = w as f32;
+    if across < SEAM_RATIO * above.max(below).max(WITHIN_FLOOR * width) {
+        return false;
+    }
+    let mean_step = step / width;
+    let uneven: f32 = (0..w)
+        .map(|u| libm::fabsf(luma_at(u, r - 1) - luma_at(u, r) - mean_step))
+        .sum();
+    uneven >= UNEVEN_STEP * width
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::vec::Vec;
+
+    const W: usize = 64;
+    const H: usize = 48;
+
+    fn camera() -> Camera {
+        Camera::ideal(W as u32, H as u32, 60.0 * core::f32::consts::PI / 180.0)
+    }
+
+    /// A textured frame: a slow gradient down the rows and a pattern across the columns.
+    fn texture(u: usize, v: usize, shift: usize) -> u8 {
+        let x = (u + shift) as f32;
+        (100.0 + 30.0 * libm::sinf(0.7 * x) + 2.0 * v as f32) as u8
+    }
+
+    /// The level line through the row boundary between rows `r − 1` and `r`.
+    fn level_at(r: usize) -> HorizonLine {
+        let camera = camera();
+        HorizonLine::from_attitude(0.0, libm::atanf((r as f32 - 0.5 - camera.cy) / camera.fy))
+    }
+
+    #[test]
+    fn a_band_torn_sideways_leaves_a_seam_at_its_top() {
+        let frame: Vec<u8> = (0..H)
+            .flat_map(|v| (0..W).map(move |u| texture(u, v, if v >= 24 { 5 } else { 0 })))
+            .collect();
+        let f = Frame::grey(W, H, &frame).expect("fits");
+        assert!(along_row_seam(&f, &camera(), level_at(24)));
+        // A block row higher, the rows across the line are the same picture's.
+        assert!(!along_row_seam(&f, &camera(), level_at(16)));
+        // Tilted by a degree, the line is not along the rows.
+        let tilted = HorizonLine {
+            camera_roll_rad: 1.0f32.to_radians(),
+            ..level_at(24)
+        };
+        assert!(!along_row_seam(&f, &camera(), tilted));
+    }
+
+    #[test]
+    fn a_splice_off_the_block_rows_is_not_a_codecs() {
+        let frame: Vec<u8> = (0..H)
+            .flat_map(|v| (0..W).map(move |u| texture(u, v, if v >= 28 { 5 } else { 0 })))
+            .collect();
+        let f = Frame::grey(W, H, &frame).expect("fits");
+        assert!(!along_row_seam(&f, &camera(), level_at(28)));
+    }
+
+    #[test]
+    fn a_horizon_spread_over_two_rows_is_not_a_seam() {
+        // Textured ground under a smooth sky, the step shared by two rows as a lens shares it.
+        let frame: Vec<u8> = (0..H)
+            .flat_map(|v| {
+                (0..W).map(move |u| match v {
+                    0..=23 => 200,
+                    24 => 150,
+                    _ => texture(u, v, 0) / 2,
+                })
+            })
+            .collect();
+        let f = Frame::grey(W, H, &frame).expect("fits");
+        assert!(!along_row_seam(&f, &camera(), level_at(24)));
+    }
+
+    #[test]
+    fn an_even_step_on_a_row_boundary_is_not_a_seam() {
+        // A noiseless two-tone horizon laid exactly on a row boundary: no texture to show the
+        // two sides are different pictures.
+        let frame: Vec<u8> = (0..H)
+            .flat_map(|v| (0..W).map(move |_| if v < 24 { 200 } else { 90 }))
+            .collect();
+        let f = Frame::grey(W, H, &frame).expect("fits");
+        assert!(!along_row_seam(&f, &camera(), level_at(24)));
+    }
+
+    #[test]
+    fn lines_near_the_frames_top_and_bottom_are_read_safely() {
+        let frame = [128u8; W * H];
+        let f = Frame::grey(W, H, &frame).expect("fits");
+        for r in [0usize, 1, 2, H - 2, H - 1, H, H + 40] {
+            assert!(!along_row_seam(&f, &camera(), level_at(r)));
+        }
+        let far = HorizonLine::from_attitude(0.0, 1.5);
+        assert!(!along_row_seam(&f, &camera(), far));
+    }
+}
