@@ -1022,8 +1022,8 @@ impl HorizonDetector {
         if placement.significance < profile::MIN_SIGNIFICANCE {
             confidence *= 0.5;
         }
-        // The frame's halves each find a clear edge, but not where the line has it, and no
-        // clearer line runs through them: the roll is only the binned image's guess.
+        // The frame's halves each find a clear edge, on a roll more than 1.7° from the line's,
+        // and no clearer line runs through them: the roll is only the binned image's guess.
         if placement.halves == profile::Halves::Contradicted {
             confidence *= CONTRADICTED_ROLL_CONFIDENCE;
         }

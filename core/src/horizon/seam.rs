@@ -39,16 +39,16 @@ const UNEVEN_STEP: f32 = 1.0;
 /// Whether `line` (a horizon line of the full-resolution frame) runs along the frame's rows on
 /// a row boundary where the frame is spliced.
 pub(crate) fn along_row_seam(frame: &Frame<'_>, camera: &Camera, line: HorizonLine) -> bool {
-    let (s, c) = (
+    let (sin_roll, cos_roll) = (
         libm::sinf(line.camera_roll_rad),
         libm::cosf(line.camera_roll_rad),
     );
-    if libm::fabsf(s) > LEVEL_SINE {
+    if libm::fabsf(sin_roll) > LEVEL_SINE {
         return false;
     }
     // The row boundary nearest to where the line crosses the principal point's column: the
     // boundary between rows r − 1 and r is at r − ½ (pixel centres at the integers).
-    let (_, v) = camera.project(0.0, line.offset / c);
+    let (_, v) = camera.project(0.0, line.offset / cos_roll);
     let boundary = libm::roundf(v + 0.5);
     if !boundary.is_finite() || boundary < 2.0 {
         return false;
