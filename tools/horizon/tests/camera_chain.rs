@@ -16,6 +16,10 @@ fn script() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("camera_chain.py")
 }
 
+fn h264_script() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("h264_link.py")
+}
+
 fn bench() -> Command {
     Command::new(env!("CARGO_BIN_EXE_skyframe-horizon"))
 }
@@ -157,4 +161,41 @@ fn the_chain_says_in_one_line_why_it_refuses() {
         assert_eq!(stderr.lines().count(), 1, "{stderr}");
         assert!(stderr.contains(says), "{stderr}");
     }
+}
+
+/// The held-out H.264 link (tools/horizon/h264_link.py, only scored): a clear link (no slice
+/// lost) passes every frame, at its size, and the bench reads them back against the truth.
+#[test]
+fn an_h264_link_passes_a_set_the_bench_scores() {
+    let dir = std::env::temp_dir().join(format!("skyframe-h264-test-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let out = bench()
+        .args(["bench", "--json", "--generator", "terrain", "--seed", "16"])
+        .args(["--only", "clean", "--sizes", "320x240", "--frames", "6"])
+        .args(["--python", &python(), "--keep"])
+        .arg(&dir)
+        .output()
+        .expect("runs bench");
+    succeeded(out);
+    let linked = dir.join("h264_clean");
+    let out = Command::new(python())
+        .arg(h264_script())
+        .arg(dir.join("terrain-clean-320x240"))
+        .arg(&linked)
+        .args(["--crf", "30", "--loss", "0", "--seed", "1"])
+        .output()
+        .expect("runs python");
+    succeeded(out);
+    let frames = std::fs::read_dir(&linked)
+        .expect("output")
+        .filter(|e| {
+            e.as_ref()
+                .is_ok_and(|e| e.file_name().to_string_lossy().starts_with("frame_"))
+        })
+        .count();
+    let accuracy = score(&linked, "h264_clean");
+    let _ = std::fs::remove_dir_all(&dir);
+    assert_eq!(frames, 6);
+    assert_eq!(accuracy["frames"], 6, "{accuracy}");
+    assert_eq!(accuracy["within_5deg"], 1.0, "{accuracy}");
 }
