@@ -493,21 +493,37 @@ def sensor_noise(exposed, rng, electrons):
     return np.clip(out + 0.6 * (out - blurred), 0, 1)
 
 
-def video_link(bgr, rng, previous, quality, half):
-    """OpenCV's libjpeg at a low quality, encoded at half resolution on some links; lost
-    16-row slices concealed with the previous frame's, a band torn sideways now and then."""
+def jpeg_round_trip(bgr, quality, half):
+    """OpenCV's libjpeg at `quality`, encoded at half resolution if `half`, decoded at the
+    frame's size."""
     h, w = bgr.shape[:2]
     src = cv2.resize(bgr, (w // 2, h // 2), interpolation=cv2.INTER_AREA) if half else bgr
-    _, data = cv2.imencode(".jpg", src, [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
+    ok, data = cv2.imencode(".jpg", src, [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
+    if not ok:
+        raise RuntimeError("OpenCV could not encode a JPEG")
     out = cv2.imdecode(data, cv2.IMREAD_COLOR)
     if half:
         out = cv2.resize(out, (w, h), interpolation=cv2.INTER_LINEAR)
-    for top in range(0, h, 16):
+    return out
+
+
+def lose_slices(out, rng, previous):
+    """Lost 16-row slices concealed with the previous frame's, a slice torn sideways now and
+    then (in place)."""
+    for top in range(0, out.shape[0], 16):
         if previous is not None and rng.random() < 0.05:
             out[top : top + 16] = previous[top : top + 16]
         elif rng.random() < 0.03:
             shift = int(rng.integers(8, 64)) * (1 if rng.random() < 0.5 else -1)
             out[top : top + 16] = np.roll(out[top : top + 16], shift, axis=1)
+
+
+def video_link(bgr, rng, previous, quality, half):
+    """OpenCV's libjpeg at a low quality, encoded at half resolution on some links; lost
+    16-row slices concealed with the previous frame's, a band torn sideways now and then."""
+    h, w = bgr.shape[:2]
+    out = jpeg_round_trip(bgr, quality, half)
+    lose_slices(out, rng, previous)
     if rng.random() < 0.1:
         top = int(rng.integers(0, max(1, h // 16))) * 16
         left = int(rng.integers(0, max(1, w // 16))) * 16

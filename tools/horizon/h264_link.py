@@ -16,15 +16,9 @@ camera and truth. Needs PyAV (`pip install av`, whose wheels bundle FFmpeg with 
 
 import argparse
 import os
-import shutil
-import sys
 from fractions import Fraction
 
-
-def fail(message):
-    print(f"h264_link.py: {message}", file=sys.stderr)
-    sys.exit(1)
-
+from labelled_set import copy_labels, fail, frame_names
 
 try:
     import av
@@ -60,12 +54,7 @@ def main():
     p.add_argument("--loss", type=float, default=0.03, help="share of slices lost (%(default)s)")
     p.add_argument("--seed", type=int, default=0, help="which slices are lost")
     a = p.parse_args()
-    for name in ("camera.toml", "truth.csv"):
-        if not os.path.isfile(os.path.join(a.input, name)):
-            fail(f"{os.path.join(a.input, name)}: missing (not a set directory)")
-    names = sorted(n for n in os.listdir(a.input) if n.startswith("frame_") and n.endswith(".png"))
-    if not names:
-        fail(f"{a.input}: no frame_NNNNNN.png frames")
+    names = frame_names(a.input)
     frames = []
     for name in names:
         bgr = cv2.imread(os.path.join(a.input, name), cv2.IMREAD_COLOR)
@@ -75,9 +64,7 @@ def main():
     h, w = frames[0].shape[:2]
     if w % 2 or h % 2 or any(f.shape[:2] != (h, w) for f in frames):
         fail(f"{a.input}: frames must share one even size")
-    os.makedirs(a.output, exist_ok=True)
-    for name in ("camera.toml", "truth.csv"):
-        shutil.copy(os.path.join(a.input, name), os.path.join(a.output, name))
+    copy_labels(a.input, a.output)
 
     encoder = av.CodecContext.create("libx264", "w")
     encoder.width, encoder.height, encoder.pix_fmt = w, h, "yuv420p"
