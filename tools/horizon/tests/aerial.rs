@@ -4,26 +4,14 @@
 //! The interpreter is `python3`, or `SKYFRAME_HORIZON_PYTHON` (numpy and OpenCV, as for the
 //! baseline: see tests/opencv.rs).
 
-use std::path::PathBuf;
-use std::process::{Command, Output};
+mod common;
 
-fn python() -> String {
-    std::env::var("SKYFRAME_HORIZON_PYTHON").unwrap_or_else(|_| "python3".into())
-}
+use common::{python, score_real, succeeded};
+use std::path::PathBuf;
+use std::process::Command;
 
 fn script() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("aerial_set.py")
-}
-
-/// The standard output of a run that must have succeeded (else its output and errors).
-fn succeeded(out: Output) -> String {
-    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
-    assert!(
-        out.status.success(),
-        "{stdout}{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    stdout
 }
 
 #[test]
@@ -57,22 +45,10 @@ fn bench_scores_an_aerial_set_against_its_truth() {
     let truth = std::fs::read_to_string(set.join("truth.csv")).expect("truth.csv");
     assert_eq!(truth.lines().count(), 4, "{truth}");
 
-    let out = Command::new(env!("CARGO_BIN_EXE_skyframe-horizon"))
-        .args(["bench", "--json", "--no-opencv", "--generator", "synth"])
-        .args(["--only", "clean_320", "--frames", "1", "--sizes", "320x240"])
-        .arg("--real")
-        .arg(&set)
-        .output()
-        .expect("runs bench");
+    let accuracy = score_real(&set, "clean_320");
     let _ = std::fs::remove_dir_all(&dir);
-    let report: serde_json::Value = serde_json::from_str(&succeeded(out)).expect("JSON");
-    let sets = report["accuracy"].as_array().expect("accuracy");
-    let aerial = sets
-        .iter()
-        .find(|s| s["generator"] == "real" && s["set"] == "clean_320")
-        .unwrap_or_else(|| panic!("no aerial set in {report}"));
     // A clear horizon on every frame of this seed: the detector, which never saw this
     // generator, finds each within 5°. A truth written on the wrong side, with the wrong sign
     // or in the wrong pixel frame would put them tens of degrees off.
-    assert_eq!(aerial["ours"]["accuracy"]["within_5deg"], 1.0, "{aerial}");
+    assert_eq!(accuracy["within_5deg"], 1.0, "{accuracy}");
 }

@@ -5,12 +5,11 @@
 //! The interpreter is `python3`, or `SKYFRAME_HORIZON_PYTHON` (numpy and OpenCV, as for the
 //! baseline: see tests/opencv.rs).
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
-fn python() -> String {
-    std::env::var("SKYFRAME_HORIZON_PYTHON").unwrap_or_else(|_| "python3".into())
-}
+use common::{binary, python, score_real, succeeded};
+use std::path::{Path, PathBuf};
+use std::process::Command;
 
 fn script() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("camera_chain.py")
@@ -20,36 +19,21 @@ fn h264_script() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("h264_link.py")
 }
 
-fn bench() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_skyframe-horizon"))
-}
-
-/// The standard output of a run that must have succeeded (else its output and errors).
-fn succeeded(out: Output) -> String {
-    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
-    assert!(
-        out.status.success(),
-        "{stdout}{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    stdout
-}
-
-/// `bench --real`'s accuracy of the set `dir`, whose name is `name`.
-fn score(dir: &Path, name: &str) -> serde_json::Value {
-    let out = bench()
-        .args(["bench", "--json", "--no-opencv", "--generator", "synth"])
-        .args(["--only", name, "--frames", "1", "--sizes", "320x240"])
-        .arg("--real")
+/// `frames` frames of `terrain` `clean` of `seed` at `size` (`WIDTHxHEIGHT`), kept by the bench
+/// under `dir`: the set's directory.
+fn rendered_clean(dir: &Path, seed: u32, size: &str, frames: u32) -> PathBuf {
+    let _ = std::fs::remove_dir_all(dir);
+    let out = binary()
+        .args(["bench", "--json", "--generator", "terrain", "--seed"])
+        .arg(seed.to_string())
+        .args(["--only", "clean", "--sizes", size, "--frames"])
+        .arg(frames.to_string())
+        .args(["--python", &python(), "--keep"])
         .arg(dir)
         .output()
         .expect("runs bench");
-    let report: serde_json::Value = serde_json::from_str(&succeeded(out)).expect("JSON");
-    let sets = report["accuracy"].as_array().expect("accuracy");
-    sets.iter()
-        .find(|s| s["generator"] == "real" && s["set"] == name)
-        .unwrap_or_else(|| panic!("no set {name} in {report}"))["ours"]["accuracy"]
-        .clone()
+    succeeded(out);
+    dir.join(format!("terrain-clean-{size}"))
 }
 
 /// `terrain` `clean` of `seed` at `size` (`WIDTHxHEIGHT`), 40 frames, passed through the chain's
@@ -59,26 +43,17 @@ fn chained(seed: u32, size: &str, stages: &str, chain_seed: u32) -> serde_json::
         "skyframe-chain-test-{}-{seed}-{chain_seed}",
         std::process::id()
     ));
-    let _ = std::fs::remove_dir_all(&dir);
-    let out = bench()
-        .args(["bench", "--json", "--generator", "terrain", "--seed"])
-        .arg(seed.to_string())
-        .args(["--only", "clean", "--sizes", size, "--frames", "40"])
-        .args(["--python", &python(), "--keep"])
-        .arg(&dir)
-        .output()
-        .expect("runs bench");
-    succeeded(out);
+    let rendered = rendered_clean(&dir, seed, size, 40);
     let chained = dir.join("chain_clean");
     let out = Command::new(python())
         .arg(script())
-        .arg(dir.join(format!("terrain-clean-{size}")))
+        .arg(rendered)
         .arg(&chained)
         .args(["--stages", stages, "--seed", &chain_seed.to_string()])
         .output()
         .expect("runs python");
     succeeded(out);
-    let accuracy = score(&chained, "chain_clean");
+    let accuracy = score_real(&chained, "chain_clean");
     let _ = std::fs::remove_dir_all(&dir);
     eprintln!("{accuracy}");
     accuracy
@@ -168,19 +143,11 @@ fn the_chain_says_in_one_line_why_it_refuses() {
 #[test]
 fn an_h264_link_passes_a_set_the_bench_scores() {
     let dir = std::env::temp_dir().join(format!("skyframe-h264-test-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    let out = bench()
-        .args(["bench", "--json", "--generator", "terrain", "--seed", "16"])
-        .args(["--only", "clean", "--sizes", "320x240", "--frames", "6"])
-        .args(["--python", &python(), "--keep"])
-        .arg(&dir)
-        .output()
-        .expect("runs bench");
-    succeeded(out);
+    let rendered = rendered_clean(&dir, 16, "320x240", 6);
     let linked = dir.join("h264_clean");
     let out = Command::new(python())
         .arg(h264_script())
-        .arg(dir.join("terrain-clean-320x240"))
+        .arg(rendered)
         .arg(&linked)
         .args(["--crf", "30", "--loss", "0", "--seed", "1"])
         .output()
@@ -193,7 +160,7 @@ fn an_h264_link_passes_a_set_the_bench_scores() {
                 .is_ok_and(|e| e.file_name().to_string_lossy().starts_with("frame_"))
         })
         .count();
-    let accuracy = score(&linked, "h264_clean");
+    let accuracy = score_real(&linked, "h264_clean");
     let _ = std::fs::remove_dir_all(&dir);
     assert_eq!(frames, 6);
     assert_eq!(accuracy["frames"], 6, "{accuracy}");

@@ -4,15 +4,9 @@
 //! The interpreter is `python3`, or `SKYFRAME_HORIZON_PYTHON` where the system one has another
 //! OpenCV (e.g. a virtual environment with the pin).
 
-use std::process::Command;
+mod common;
 
-fn binary() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_skyframe-horizon"))
-}
-
-fn python() -> String {
-    std::env::var("SKYFRAME_HORIZON_PYTHON").unwrap_or_else(|_| "python3".into())
-}
+use common::{binary, python};
 
 fn f64_at(v: &serde_json::Value, path: &[&str]) -> f64 {
     path.iter()
