@@ -99,6 +99,20 @@ mod tests {
         (100.0 + 30.0 * libm::sinf(0.7 * x) + 2.0 * v as f32) as u8
     }
 
+    /// A W×H grey frame of `pixel(u, v)`.
+    fn grey(pixel: impl Fn(usize, usize) -> u8) -> Vec<u8> {
+        (0..H)
+            .flat_map(|v| (0..W).map(move |u| (u, v)))
+            .map(|(u, v)| pixel(u, v))
+            .collect()
+    }
+
+    /// [`along_row_seam`] of `line` on the grey frame `pixels`.
+    fn seam_at(pixels: &[u8], line: HorizonLine) -> bool {
+        let frame = Frame::grey(W, H, pixels).expect("fits");
+        along_row_seam(&frame, &camera(), line)
+    }
+
     /// The level line through the row boundary between rows `r − 1` and `r`.
     fn level_at(r: usize) -> HorizonLine {
         let camera = camera();
@@ -107,65 +121,49 @@ mod tests {
 
     #[test]
     fn a_band_torn_sideways_leaves_a_seam_at_its_top() {
-        let frame: Vec<u8> = (0..H)
-            .flat_map(|v| (0..W).map(move |u| texture(u, v, if v >= 24 { 5 } else { 0 })))
-            .collect();
-        let f = Frame::grey(W, H, &frame).expect("fits");
-        assert!(along_row_seam(&f, &camera(), level_at(24)));
+        let frame = grey(|u, v| texture(u, v, if v >= 24 { 5 } else { 0 }));
+        assert!(seam_at(&frame, level_at(24)));
         // A block row higher, the rows across the line are the same picture's.
-        assert!(!along_row_seam(&f, &camera(), level_at(16)));
+        assert!(!seam_at(&frame, level_at(16)));
         // Tilted by a degree, the line is not along the rows.
         let tilted = HorizonLine {
             camera_roll_rad: 1.0f32.to_radians(),
             ..level_at(24)
         };
-        assert!(!along_row_seam(&f, &camera(), tilted));
+        assert!(!seam_at(&frame, tilted));
     }
 
     #[test]
     fn a_splice_off_the_block_rows_is_not_a_codecs() {
-        let frame: Vec<u8> = (0..H)
-            .flat_map(|v| (0..W).map(move |u| texture(u, v, if v >= 28 { 5 } else { 0 })))
-            .collect();
-        let f = Frame::grey(W, H, &frame).expect("fits");
-        assert!(!along_row_seam(&f, &camera(), level_at(28)));
+        let frame = grey(|u, v| texture(u, v, if v >= 28 { 5 } else { 0 }));
+        assert!(!seam_at(&frame, level_at(28)));
     }
 
     #[test]
     fn a_horizon_spread_over_two_rows_is_not_a_seam() {
         // Textured ground under a smooth sky, the step shared by two rows as a lens shares it.
-        let frame: Vec<u8> = (0..H)
-            .flat_map(|v| {
-                (0..W).map(move |u| match v {
-                    0..=23 => 200,
-                    24 => 150,
-                    _ => texture(u, v, 0) / 2,
-                })
-            })
-            .collect();
-        let f = Frame::grey(W, H, &frame).expect("fits");
-        assert!(!along_row_seam(&f, &camera(), level_at(24)));
+        let frame = grey(|u, v| match v {
+            0..=23 => 200,
+            24 => 150,
+            _ => texture(u, v, 0) / 2,
+        });
+        assert!(!seam_at(&frame, level_at(24)));
     }
 
     #[test]
     fn an_even_step_on_a_row_boundary_is_not_a_seam() {
         // A noiseless two-tone horizon laid exactly on a row boundary: no texture to show the
         // two sides are different pictures.
-        let frame: Vec<u8> = (0..H)
-            .flat_map(|v| (0..W).map(move |_| if v < 24 { 200 } else { 90 }))
-            .collect();
-        let f = Frame::grey(W, H, &frame).expect("fits");
-        assert!(!along_row_seam(&f, &camera(), level_at(24)));
+        let frame = grey(|_, v| if v < 24 { 200 } else { 90 });
+        assert!(!seam_at(&frame, level_at(24)));
     }
 
     #[test]
     fn lines_near_the_frames_top_and_bottom_are_read_safely() {
-        let frame = [128u8; W * H];
-        let f = Frame::grey(W, H, &frame).expect("fits");
+        let frame = grey(|_, _| 128);
         for r in [0usize, 1, 2, H - 2, H - 1, H, H + 40] {
-            assert!(!along_row_seam(&f, &camera(), level_at(r)));
+            assert!(!seam_at(&frame, level_at(r)));
         }
-        let far = HorizonLine::from_attitude(0.0, 1.5);
-        assert!(!along_row_seam(&f, &camera(), far));
+        assert!(!seam_at(&frame, HorizonLine::from_attitude(0.0, 1.5)));
     }
 }
