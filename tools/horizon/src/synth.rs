@@ -103,10 +103,15 @@ pub enum Degradation {
     /// 40–70° down at the shoreline, where the sea is darker, bluer and smoother than the
     /// land, as a sky is: scored only on false confidence.
     Coast,
+    /// `coast` with a calm sea that mirrors the sky (sixteenth session): Schlick's Fresnel
+    /// term, uncapped, so that at grazing angles the sea is nearly the sky's own colour and
+    /// the shore, sea-bright over dark land and tilted by the coast's turn, is a stronger
+    /// sky-over-ground step than the horizon's 12–16 levels above it.
+    CalmSea,
 }
 
 impl Degradation {
-    pub const SETS: [Degradation; 23] = [
+    pub const SETS: [Degradation; 24] = [
         Degradation::Clean,
         Degradation::SensorNoise,
         Degradation::TransmissionNoise,
@@ -130,6 +135,7 @@ impl Degradation {
         Degradation::TreeLine,
         Degradation::ObliqueGroundEdge,
         Degradation::Coast,
+        Degradation::CalmSea,
     ];
 
     pub fn name(self) -> &'static str {
@@ -158,6 +164,7 @@ impl Degradation {
             Degradation::TreeLine => "tree-line",
             Degradation::ObliqueGroundEdge => "oblique-ground-edge",
             Degradation::Coast => "coast",
+            Degradation::CalmSea => "calm-sea",
         }
     }
 
@@ -359,7 +366,7 @@ impl Renderer {
         // road or cloud edge persists from frame to frame as a horizon would, and the tracker
         // must not lend it confidence.
         let looking_down = no_horizon && (index / 8) % 2 == 0;
-        let at_the_coast = self.degradation == Degradation::Coast;
+        let at_the_coast = matches!(self.degradation, Degradation::Coast | Degradation::CalmSea);
         let down_at_the_coast = at_the_coast && (index / 8) % 4 == 3;
         // 40–70° nose down or up: the horizon is outside the frame at any roll (the frame's
         // corner is 36° off the axis), from 17° past its edge to far away.
@@ -431,6 +438,7 @@ impl Renderer {
                 } else {
                     0.0
                 },
+                mirror: self.degradation == Degradation::CalmSea,
             }
         });
         let haze = if self.degradation == Degradation::Haze {
@@ -1462,6 +1470,8 @@ struct Coast {
     sea_beyond: bool,
     /// The width of the sand between the fields and the sea (none: the fields reach the water).
     beach_m: f32,
+    /// A calm sea mirroring the sky rather than the dark blue water of `coast`.
+    mirror: bool,
 }
 
 impl Coast {
@@ -1491,6 +1501,22 @@ impl Coast {
         }
         if seaward < 0.0 {
             return ground_colour(world, gn, ge, distance, true, Haze::NEAR_SKY);
+        }
+        if self.mirror {
+            // The ray meets the water at incidence cos i = altitude / distance and sees the
+            // sky at that elevation; mixed with the dark water body as light mixes (linear).
+            let cos_i = (ALTITUDE_M / distance.max(ALTITUDE_M)).clamp(0.0, 1.0);
+            let fresnel = 0.02 + 0.98 * (1.0 - cos_i).powi(5);
+            let ripple = 1.0 + 0.12 * (fbm(world ^ 0x5EB, gn / 6.0, ge / 15.0, 2) - 0.5);
+            let sky = sky_colour(cos_i);
+            let water = [14.0, 26.0, 34.0];
+            let sea: [f32; 3] = std::array::from_fn(|i| {
+                srgb_encode(
+                    ripple
+                        * (fresnel * srgb_decode(sky[i]) + (1.0 - fresnel) * srgb_decode(water[i])),
+                )
+            });
+            return hazed(sea, distance, Haze::NEAR_SKY);
         }
         let waves = (fbm(world ^ 0x5EA, gn / 4.0, ge / 9.0, 2) - 0.5) * 14.0;
         hazed(
