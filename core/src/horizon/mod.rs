@@ -803,6 +803,30 @@ impl HorizonDetector {
             }
         }
 
+        // A shore under a calm sea: the sea mirrors the sky, brightening up to the horizon
+        // as the haze does, and the shore below it is the clearest sky-over-ground step in
+        // the frame, turned from the horizon by the coast's angle (`synth` `calm-sea`: 8–25°).
+        // The profile across the line keeps rising above it; the horizon is the ridge where
+        // the sea's brightening meets the sky's darkening, looked for in profiles of the band
+        // above the line read across turned lines (see `ridge_over_ramp`).
+        let mut on_ridge = false;
+        if !climbed
+            && !from_region
+            && sky_brighter
+            && profile.rises_above()
+            && let Some(upper) = ridge_over_ramp(
+                &context,
+                ws.grey,
+                &chosen,
+                (HIGHER_EDGE_REACH / rho.step) as usize,
+            )
+        {
+            turned_from = Some(chosen.line);
+            profile = across(upper.line, sky_ward);
+            chosen = self.tracked(upper);
+            climbed = true;
+            on_ridge = true;
+        }
         // 7c: interference (see `stripes`). A striped sky above the chosen line: the line is a
         // crest nearly parallel to the horizon. A family of parallel candidates: the stripes'
         // crests, which scattered the horizon's own edge points (the line chosen is then a
@@ -992,6 +1016,11 @@ impl HorizonDetector {
         // sky above it adds.
         if on_ramp && profile.at_foot_of_ramp(RAMP_EXTENT) {
             confidence *= RAMP_CONFIDENCE;
+        }
+        // A ridge's top is placed by a profile's brightest bin at a turn searched in steps
+        // of 1.5°, not drawn by edges: on a noisy frame it can be a few degrees out.
+        if on_ridge {
+            confidence *= RIDGE_CONFIDENCE;
         }
         // The edge of a bar of blanked rows chosen for want of another line (see `sync_bar`).
         if sync_bar::along_blank_bar(ws.grey, geo, &camera, chosen.line) {
@@ -1362,6 +1391,88 @@ fn higher_step(
     Some(Scored::new(line, sky_brighter, separation, chosen.coverage))
 }
 
+/// Turns (degrees) of the lines across which the band above a line on a ramp is read for a
+/// ridge; the best is refined by half and a quarter of the step either side.
+const RIDGE_TURNS_DEG: [f32; 9] = [-24.0, -18.0, -12.0, -6.0, 0.0, 6.0, 12.0, 18.0, 24.0];
+const RIDGE_TURN_STEP_DEG: f32 = 6.0;
+/// Least prominence of a ridge (levels) above a line on a ramp: `calm-sea`'s horizons stood
+/// 5.3–7.8 levels over both flanks in the profile across their own direction; the ridges
+/// that profiles across other turns find in a plain sky, 1–5.
+const RIDGE_PROMINENCE: f32 = 5.0;
+/// Share of the variance above the chosen line that the ridge line must explain: the sky
+/// over a sea splits from it (`calm-sea` 0.34–0.47), a glow or a cloud within a sky does not
+/// (`terrain` `ground-edges`, ridges found above right lines: 0.04–0.24).
+const RIDGE_ABOVE_EXPLAINED: f32 = 0.3;
+
+/// Least ratio of the texture of the band between the chosen line and a ridge to that of the
+/// sky above the ridge: a sea's ripples under a smooth sky (`calm-sea` 1.5–3.5), where a
+/// cloud band in a cloudy sky is as textured as the clouds above it.
+const RIDGE_BAND_TEXTURE_RATIO: f32 = 1.25;
+
+/// The horizon above a line on a ramp (see [`upper::Profile::rises_above`]) where it is the
+/// top of a ridge rather than a step: the sea under a calm sky mirrors it, brightening up to
+/// the horizon, and the sky darkens away from it. Profiles of the band above `chosen` (its
+/// pixels only) are read across lines turned by [`RIDGE_TURNS_DEG`]; the most prominent
+/// ridge is kept when it is at least [`RIDGE_PROMINENCE`], splits the part of the frame above
+/// `chosen` ([`RIDGE_ABOVE_EXPLAINED`]) and has sky above it smoother than the band under it
+/// ([`RIDGE_BAND_TEXTURE_RATIO`]).
+fn ridge_over_ramp(
+    c: &LineContext<'_>,
+    grey: &[u8],
+    chosen: &Scored,
+    reach: usize,
+) -> Option<Scored> {
+    let sky_ward = 1.0;
+    let ridge_at = |turn_deg: f32| {
+        let line = turned_about_its_foot(chosen.line, turn_deg * PI / 180.0);
+        let profile = upper::Profile::measure_above(
+            grey,
+            c.geo,
+            c.camera,
+            (line, sky_ward, c.rho.step, reach),
+            (chosen.line, 2.0),
+        );
+        Some((profile.ridge()?, turn_deg))
+    };
+    let best = |a: &(upper::Ridge, f32), b: &(upper::Ridge, f32)| {
+        a.0.prominence.total_cmp(&b.0.prominence)
+    };
+    let (coarse, turn) = RIDGE_TURNS_DEG
+        .iter()
+        .filter_map(|&t| ridge_at(t))
+        .max_by(best)?;
+    let mut found = (coarse, turn);
+    for share in [0.5, 0.25] {
+        let (ridge, turn) = found;
+        let step = share * RIDGE_TURN_STEP_DEG;
+        found = [turn - step, turn + step]
+            .into_iter()
+            .filter_map(ridge_at)
+            .chain([(ridge, turn)])
+            .max_by(best)?;
+    }
+    let ridge = found.0;
+    if ridge.prominence < RIDGE_PROMINENCE {
+        return None;
+    }
+    let (nx, ny) = chosen.line.normal();
+    let margin = 2.0 * c.rho.step;
+    let above_chosen = hough::separation_of(c.samples, ridge.line, margin, |s| {
+        sky_ward * (s.x * nx + s.y * ny - chosen.line.rho) > margin
+    });
+    let texture = hough::band_textures(c.samples, chosen.line, ridge.line, sky_ward, c.rho.step);
+    // Written as the refusal it negates: a NaN is not a refusal.
+    if above_chosen.explained < RIDGE_ABOVE_EXPLAINED
+        || texture.between_count < 8
+        || texture.above_count < 8
+        || texture.between < RIDGE_BAND_TEXTURE_RATIO * texture.above
+    {
+        return None;
+    }
+    let separation = hough::separation(c.samples, ridge.line, 2.0 * c.rho.step);
+    Some(Scored::new(ridge.line, true, separation, chosen.coverage))
+}
+
 /// Share of the variance above a ground edge that a step found there must explain to be taken
 /// for the horizon when it splits the whole frame less than half as well as the edge.
 const ABOVE_EDGE_EXPLAINED: f32 = 0.5;
@@ -1514,6 +1625,10 @@ const RAMP_EXTENT: f32 = 0.1;
 /// Share of its confidence a line along a bar of blanked rows keeps (see `sync_bar`): on
 /// `synth` `black-stripes` seed 2, frame 29's bar edge (9° off) was its only candidate.
 const SYNC_BAR_CONFIDENCE: f32 = 0.25;
+/// Share of its confidence a horizon found as a ridge above a line on a ramp keeps (see
+/// `ridge_over_ramp`): on the camera-and-link chain, a third of those that passed the gate
+/// were 2.5–12° out.
+const RIDGE_CONFIDENCE: f32 = 0.7;
 /// Most confidence a line found by regions gets (its edges are not what drew it).
 const REGION_CONFIDENCE: f32 = 0.8;
 /// A region line is not drawn by edges: it counts as covered along its length, so that its

@@ -1468,3 +1468,44 @@ fn a_horizon_broken_into_two_levels_contradicts_a_line_across_both() {
         "the roll stays"
     );
 }
+
+#[test]
+fn a_shore_under_a_calm_sea_is_not_the_horizon() {
+    // A calm sea mirrors the sky: it brightens up to the horizon as the sky does down to it,
+    // a ridge rather than a step, while the shore 10–13° below, turned 12–18° from the horizon by
+    // the coast's angle, is the clearest sky-over-ground step in the frame (`synth`
+    // `calm-sea`). The horizon is the ridge's top.
+    let camera = camera_320();
+    for (roll, pitch, turn, below) in [
+        (10.0f32, 2.0f32, 12.0f32, 10.0f32),
+        (-20.0, -3.0, -12.0, 10.0),
+        (5.0, 6.0, 18.0, 13.0),
+    ] {
+        let (shore_roll, shore_pitch) = ((roll + turn) * DEG, (pitch + below) * DEG);
+        let (ss, sc, so) = (
+            libm::sinf(shore_roll),
+            libm::cosf(shore_roll),
+            libm::tanf(shore_pitch),
+        );
+        let scene = |u: f32, v: f32, d: f32| {
+            let (x, y) = camera.undistort_pixel(u, v).expect("inside the model");
+            let texture = hash((u / 3.0) as i64, (v / 2.0) as i64, 5) - 0.5;
+            if ss * x + sc * y - so > 0.0 {
+                // Fields behind the shore.
+                40.0 + 24.0 * texture
+            } else if d > 0.0 {
+                // The sea, darkening away from the horizon, with ripples.
+                196.0 - 600.0 * d + 8.0 * texture
+            } else {
+                // The sky, darkening away from its glow at the horizon.
+                200.0 - 40.0 * (1.0 - libm::expf(d / 0.08))
+            }
+        };
+        let grey = render_grey(&camera, roll * DEG, pitch * DEG, scene);
+        let h = detect_once(camera, Pixels::Grey(&grey));
+        assert!(
+            assert_right_or_honest(h, roll, pitch, "calm sea"),
+            "roll {roll} pitch {pitch}: the shore {turn}° turned was not climbed from: {h:?}"
+        );
+    }
+}

@@ -126,20 +126,26 @@ impl WholeBin {
 /// Calls `add(bin, luma)` for every working pixel whose distance from `chosen` falls in the
 /// profile's bins (from [`BELOW`] bins on its ground side to `reach` + [`SIDE`] on its sky
 /// side, `sky_ward` and `rho_step` as in [`Profile::measure`]), row by row, in the order the
-/// bins' sums are taken.
+/// bins' sums are taken. With a `floor` (a line and a margin in rho steps), only pixels at
+/// least that far on the sky side of the floor line count.
 fn each_pixel(
     grey: &[u8],
     geo: Working,
     camera: &Camera,
     (chosen, sky_ward, rho_step, reach): (Line, f32, f32, usize),
+    floor: Option<(Line, f32)>,
     mut add: impl FnMut(usize, u8),
 ) {
     let (nx, ny) = chosen.normal();
     let inverse = sky_ward / rho_step;
     let low = -(BELOW as f32);
     let high = (reach + SIDE) as f32;
-    let mut add = |s: f32, value: u8| {
-        if !(low..high).contains(&s) {
+    // The floor's distance in rho steps, sky-ward positive, and the least it may be (a
+    // floor at minus infinity lets every pixel through).
+    let (floor_line, floor_margin) = floor.unwrap_or((chosen, f32::NEG_INFINITY));
+    let (fnx, fny) = floor_line.normal();
+    let mut add = |s: f32, above_floor: f32, value: u8| {
+        if !(low..high).contains(&s) || above_floor < floor_margin {
             return;
         }
         // `s − low` is not negative: through i32, the cheap conversion.
@@ -156,19 +162,23 @@ fn each_pixel(
         for (wy, row) in rows.step_by(2) {
             let bin_at = |wx: usize| {
                 let (u, v) = geo.to_frame(wx as f32, wy as f32);
-                camera
-                    .undistort_pixel(u, v)
-                    .map(|(x, y)| (x * nx + y * ny - chosen.rho) * inverse)
+                camera.undistort_pixel(u, v).map(|(x, y)| {
+                    (
+                        (x * nx + y * ny - chosen.rho) * inverse,
+                        (x * fnx + y * fny - floor_line.rho) * inverse,
+                    )
+                })
             };
             let mut a = 0usize;
             let mut at_a = bin_at(0);
             while a + 1 < row.len() {
                 let b = (a + KNOT).min(row.len() - 1);
                 let at_b = bin_at(b);
-                if let (Some(sa), Some(sb)) = (at_a, at_b) {
+                if let (Some((sa, fa)), Some((sb, fb))) = (at_a, at_b) {
                     let slope = (sb - sa) / (b - a) as f32;
+                    let floor_slope = (fb - fa) / (b - a) as f32;
                     for (i, &value) in row.get(a..b).unwrap_or(&[]).iter().enumerate() {
-                        add(sa + i as f32 * slope, value);
+                        add(sa + i as f32 * slope, fa + i as f32 * floor_slope, value);
                     }
                 }
                 a = b;
@@ -181,10 +191,14 @@ fn each_pixel(
     // over the columns whose bin is in range (a band across the frame); a column either
     // side of the computed range, and the test in `add`, absorb rounding.
     let along_row = nx * geo.scale as f32 / camera.fx * inverse;
+    let floor_along_row = fnx * geo.scale as f32 / camera.fx * inverse;
     for (wy, row) in rows {
         let (u0, v) = geo.to_frame(0.0, wy as f32);
         let row_start = ((u0 - camera.cx) / camera.fx * nx + (v - camera.cy) / camera.fy * ny
             - chosen.rho)
+            * inverse;
+        let floor_start = ((u0 - camera.cx) / camera.fx * fnx + (v - camera.cy) / camera.fy * fny
+            - floor_line.rho)
             * inverse;
         let columns = if libm::fabsf(along_row) < 1e-6 {
             if (low..high).contains(&row_start) {
@@ -205,9 +219,24 @@ fn each_pixel(
         for (i, &value) in row.get(columns).unwrap_or(&[]).iter().enumerate() {
             // Through u32: the same value (a column index) without the unsigned 64-bit
             // conversion's fix-ups.
-            add(row_start + (start + i) as u32 as f32 * along_row, value);
+            let column = (start + i) as u32 as f32;
+            add(
+                row_start + column * along_row,
+                floor_start + column * floor_along_row,
+                value,
+            );
         }
     }
+}
+
+/// Bins either side of a ridge's top its prominence is measured at.
+const RIDGE_FLANK: usize = 4;
+
+/// The top of a ridge in a profile: the sky's glow meeting the ground's haze.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Ridge {
+    pub line: Line,
+    pub prominence: f32,
 }
 
 /// A step found above the chosen line.
@@ -242,6 +271,36 @@ impl Profile {
         rho_step: f32,
         reach_bins: usize,
     ) -> Profile {
+        Self::measure_over(
+            grey,
+            geo,
+            camera,
+            (chosen, sky_ward, rho_step, reach_bins),
+            None,
+        )
+    }
+
+    /// As [`Profile::measure`], of only the pixels at least `margin` rho steps on the sky
+    /// side of `floor`: the profile across a line turned from `floor` reads the band above
+    /// `floor` without the ground below it.
+    pub(crate) fn measure_above(
+        grey: &[u8],
+        geo: Working,
+        camera: &Camera,
+        (line, sky_ward, rho_step, reach_bins): (Line, f32, f32, usize),
+        (floor, margin): (Line, f32),
+    ) -> Profile {
+        let band = (line, sky_ward, rho_step, reach_bins);
+        Self::measure_over(grey, geo, camera, band, Some((floor, margin)))
+    }
+
+    fn measure_over(
+        grey: &[u8],
+        geo: Working,
+        camera: &Camera,
+        (chosen, sky_ward, rho_step, reach_bins): (Line, f32, f32, usize),
+        floor: Option<(Line, f32)>,
+    ) -> Profile {
         let reach = reach_bins.min(BINS - BELOW - SIDE);
         let mut profile = Profile {
             bins: [Bin::default(); BINS],
@@ -261,7 +320,7 @@ impl Profile {
         // they always were.
         let mut whole = [WholeBin::default(); BINS];
         let band = (chosen, sky_ward, rho_step, reach);
-        each_pixel(grey, geo, camera, band, |index, value| {
+        each_pixel(grey, geo, camera, band, floor, |index, value| {
             if let Some(bin) = whole.get_mut(index) {
                 let value = u32::from(value);
                 bin.n += 1;
@@ -283,7 +342,7 @@ impl Profile {
             bins: &mut profile.bins,
             open: None,
         };
-        each_pixel(grey, geo, camera, band, |index, value| {
+        each_pixel(grey, geo, camera, band, floor, |index, value| {
             filling.add(index, value)
         });
         filling.close();
@@ -306,6 +365,28 @@ impl Profile {
         let contrast = polarity * (sky.mean() - ground.mean());
         let error = libm::sqrtf(ground.error2() + sky.error2());
         Some((contrast, contrast / error))
+    }
+
+    /// The brightest bin of the sky's polarity above the chosen line (from
+    /// [`CLEAR_OF_CHOSEN`] bins over it), with its prominence: how far the profile falls from
+    /// it within [`RIDGE_FLANK`] bins either way (the lesser of the two falls).
+    pub(crate) fn ridge(&self) -> Option<Ridge> {
+        let first = BELOW + CLEAR_OF_CHOSEN;
+        let last = BELOW + self.reach;
+        let (peak, top) = (first..=last)
+            .filter_map(|i| Some((i, self.level(i)?)))
+            .max_by(|a, b| a.1.total_cmp(&b.1))?;
+        let flank = |i: Option<usize>| i.and_then(|i| self.level(i));
+        let below = flank(peak.checked_sub(RIDGE_FLANK))?;
+        let above = flank(Some(peak + RIDGE_FLANK))?;
+        let offset = (peak as f32 - BELOW as f32) * self.rho_step;
+        Some(Ridge {
+            line: Line {
+                angle: self.line.angle,
+                rho: self.line.rho + self.sky_ward * offset,
+            },
+            prominence: (top - below).min(top - above),
+        })
     }
 
     /// Bin `i`'s mean, sky's polarity up (brighter towards a brighter sky); `None` for a bin

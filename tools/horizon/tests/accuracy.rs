@@ -240,6 +240,19 @@ fn faint_hazy_horizon_over_fields_and_sea_is_the_frames_clear_split() {
 }
 
 #[test]
+fn a_calm_sea_mirroring_the_sky_is_climbed_to_its_horizon() {
+    // Seed 2's calm sea: the shore, 8–25° of roll off the horizon, is the clearest step, and
+    // the horizon a ridge where the sea's brightening meets the sky's darkening. Before the
+    // ridge search: 0.56 within 2° at 320 px, 0.125 past the gate more than 2° wrong.
+    let bounds = Bounds {
+        within_2deg: 0.9,
+        median_deg: 0.2,
+        p95_deg: 10.0,
+    };
+    check_at(Degradation::CalmSea, 2, bounds);
+}
+
+#[test]
 fn coast_seen_steeply_down_is_not_a_horizon() {
     // Frames 24–29 look 40–70° down at a shore: the sea is darker than the fields, but bluer
     // and smoother, so two sky cues of three take it for the sky. Seed 6: before the darker
