@@ -127,7 +127,8 @@ impl WholeBin {
 /// profile's bins (from [`BELOW`] bins on its ground side to `reach` + [`SIDE`] on its sky
 /// side, `sky_ward` and `rho_step` as in [`Profile::measure`]), row by row, in the order the
 /// bins' sums are taken. With a `floor` (a line and a margin in rho steps), only pixels at
-/// least that far on the sky side of the floor line count.
+/// least that far on the sky side of the floor line count, and only every other row is read
+/// (see [`Profile::measure_above`]).
 fn each_pixel(
     grey: &[u8],
     geo: Working,
@@ -140,17 +141,18 @@ fn each_pixel(
     let inverse = sky_ward / rho_step;
     let low = -(BELOW as f32);
     let high = (reach + SIDE) as f32;
-    // The floor's distance in rho steps, sky-ward positive, and the least it may be (a
-    // floor at minus infinity lets every pixel through).
-    let (floor_line, floor_margin) = floor.unwrap_or((chosen, f32::NEG_INFINITY));
-    let (fnx, fny) = floor_line.normal();
-    let mut add = |s: f32, above_floor: f32, value: u8| {
-        if !(low..high).contains(&s) || above_floor < floor_margin {
+    let mut add = |s: f32, value: u8| {
+        if !(low..high).contains(&s) {
             return;
         }
         // `s − low` is not negative: through i32, the cheap conversion.
         add((s - low) as i32 as usize, value);
     };
+    // The floor's distance in rho steps, sky-ward positive, and the least it may be (a
+    // floor at minus infinity lets every pixel through).
+    let (floor_line, floor_margin) = floor.unwrap_or((chosen, f32::NEG_INFINITY));
+    let (fnx, fny) = floor_line.normal();
+    let row_step = if floor.is_some() { 2 } else { 1 };
     let rows = grey
         .chunks_exact(geo.width.max(1))
         .take(geo.height)
@@ -159,7 +161,7 @@ fn each_pixel(
         // Undistorting every pixel cost more than the rest of the detector (0.65 ms a
         // frame at 320×240): the bin is smooth along a row, so it is undistorted at knots
         // [`KNOT`] columns apart and interpolated, on every other row.
-        for (wy, row) in rows.step_by(2) {
+        for (wy, row) in rows.step_by(2 * row_step) {
             let bin_at = |wx: usize| {
                 let (u, v) = geo.to_frame(wx as f32, wy as f32);
                 camera.undistort_pixel(u, v).map(|(x, y)| {
@@ -178,7 +180,9 @@ fn each_pixel(
                     let slope = (sb - sa) / (b - a) as f32;
                     let floor_slope = (fb - fa) / (b - a) as f32;
                     for (i, &value) in row.get(a..b).unwrap_or(&[]).iter().enumerate() {
-                        add(sa + i as f32 * slope, fa + i as f32 * floor_slope, value);
+                        if fa + i as f32 * floor_slope >= floor_margin {
+                            add(sa + i as f32 * slope, value);
+                        }
                     }
                 }
                 a = b;
@@ -188,43 +192,61 @@ fn each_pixel(
         return;
     }
     // Without distortion the bin is linear in the pixel: one add per pixel, and only
-    // over the columns whose bin is in range (a band across the frame); a column either
-    // side of the computed range, and the test in `add`, absorb rounding.
+    // over the columns whose bin is in range (a band across the frame) and that are above
+    // the floor; a column either side of the computed range, and the test in `add`, absorb
+    // rounding (a pixel at the floor's margin may count or not).
     let along_row = nx * geo.scale as f32 / camera.fx * inverse;
     let floor_along_row = fnx * geo.scale as f32 / camera.fx * inverse;
-    for (wy, row) in rows {
-        let (u0, v) = geo.to_frame(0.0, wy as f32);
-        let row_start = ((u0 - camera.cx) / camera.fx * nx + (v - camera.cy) / camera.fy * ny
-            - chosen.rho)
-            * inverse;
-        let floor_start = ((u0 - camera.cx) / camera.fx * fnx + (v - camera.cy) / camera.fy * fny
-            - floor_line.rho)
-            * inverse;
-        let columns = if libm::fabsf(along_row) < 1e-6 {
-            if (low..high).contains(&row_start) {
-                0..row.len()
+    // The columns of a row (its first column's value `start`, `per_column` more each
+    // column) whose value lies in `low..high`.
+    let within = |start: f32, per_column: f32, (low, high): (f32, f32), width: usize| {
+        if libm::fabsf(per_column) < 1e-6 {
+            if (low..high).contains(&start) {
+                0..width
             } else {
                 0..0
             }
         } else {
-            let (a, b) = (
-                (low - row_start) / along_row,
-                (high - row_start) / along_row,
-            );
+            let (a, b) = ((low - start) / per_column, (high - start) / per_column);
             let (first, last) = (a.min(b) - 1.0, a.max(b) + 1.0);
+            let w = width as f32;
+            (first.clamp(0.0, w) as usize)..(last.clamp(0.0, w) as usize)
+        }
+    };
+    for (wy, row) in rows.step_by(row_step) {
+        let (u0, v) = geo.to_frame(0.0, wy as f32);
+        let row_start = ((u0 - camera.cx) / camera.fx * nx + (v - camera.cy) / camera.fy * ny
+            - chosen.rho)
+            * inverse;
+        let mut columns = within(row_start, along_row, (low, high), row.len());
+        if floor.is_some() {
+            let floor_start = ((u0 - camera.cx) / camera.fx * fnx
+                + (v - camera.cy) / camera.fy * fny
+                - floor_line.rho)
+                * inverse;
+            // The columns at least the margin above the floor, to the column.
             let width = row.len() as f32;
-            (first.clamp(0.0, width) as usize)..(last.clamp(0.0, width) as usize)
-        };
+            let inside = if libm::fabsf(floor_along_row) < 1e-6 {
+                if floor_start >= floor_margin {
+                    0..row.len()
+                } else {
+                    0..0
+                }
+            } else {
+                let edge = (floor_margin - floor_start) / floor_along_row;
+                if floor_along_row > 0.0 {
+                    (libm::ceilf(edge).clamp(0.0, width) as usize)..row.len()
+                } else {
+                    0..((libm::floorf(edge) + 1.0).clamp(0.0, width) as usize)
+                }
+            };
+            columns = columns.start.max(inside.start)..columns.end.min(inside.end);
+        }
         let start = columns.start;
         for (i, &value) in row.get(columns).unwrap_or(&[]).iter().enumerate() {
             // Through u32: the same value (a column index) without the unsigned 64-bit
             // conversion's fix-ups.
-            let column = (start + i) as u32 as f32;
-            add(
-                row_start + column * along_row,
-                floor_start + column * floor_along_row,
-                value,
-            );
+            add(row_start + (start + i) as u32 as f32 * along_row, value);
         }
     }
 }
