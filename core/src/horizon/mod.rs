@@ -1395,6 +1395,8 @@ fn higher_step(
 /// ridge; the best is refined by half and a quarter of the step either side.
 const RIDGE_TURNS_DEG: [f32; 9] = [-24.0, -18.0, -12.0, -6.0, 0.0, 6.0, 12.0, 18.0, 24.0];
 const RIDGE_TURN_STEP_DEG: f32 = 6.0;
+/// Rho steps above the chosen line from which the band is read: clear of its own transition.
+const RIDGE_FLOOR_MARGIN: f32 = 2.0;
 /// Least prominence of a ridge (levels) above a line on a ramp: `calm-sea`'s horizons stood
 /// 5.3–7.8 levels over both flanks in the profile across their own direction; the ridges
 /// that profiles across other turns find in a plain sky, 1–5.
@@ -1410,8 +1412,8 @@ const RIDGE_ABOVE_EXPLAINED: f32 = 0.3;
 const RIDGE_BAND_TEXTURE_RATIO: f32 = 1.25;
 
 /// The horizon above a line on a ramp (see [`upper::Profile::rises_above`]) where it is the
-/// top of a ridge rather than a step: the sea under a calm sky mirrors it, brightening up to
-/// the horizon, and the sky darkens away from it. Profiles of the band above `chosen` (its
+/// top of a ridge rather than a step: a calm sea mirrors the sky, brightening up to the
+/// horizon, and the sky darkens away from it. Profiles of the band above `chosen` (its
 /// pixels only) are read across lines turned by [`RIDGE_TURNS_DEG`]; the most prominent
 /// ridge is kept when it is at least [`RIDGE_PROMINENCE`], splits the part of the frame above
 /// `chosen` ([`RIDGE_ABOVE_EXPLAINED`]) and has sky above it smoother than the band under it
@@ -1422,6 +1424,7 @@ fn ridge_over_ramp(
     chosen: &Scored,
     reach: usize,
 ) -> Option<Scored> {
+    // The caller asks for a sky brighter than the ground: the sky is on the normal's side.
     let sky_ward = 1.0;
     let ridge_at = |turn_deg: f32| {
         let line = turned_about_its_foot(chosen.line, turn_deg * PI / 180.0);
@@ -1430,7 +1433,7 @@ fn ridge_over_ramp(
             c.geo,
             c.camera,
             (line, sky_ward, c.rho.step, reach),
-            (chosen.line, 2.0),
+            (chosen.line, RIDGE_FLOOR_MARGIN),
         );
         Some((profile.ridge()?, turn_deg))
     };

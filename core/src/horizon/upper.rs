@@ -303,8 +303,9 @@ impl Profile {
     }
 
     /// As [`Profile::measure`], of only the pixels at least `margin` rho steps on the sky
-    /// side of `floor`: the profile across a line turned from `floor` reads the band above
-    /// `floor` without the ground below it.
+    /// side of `floor`, on every other row: the profile across a line turned from `floor`
+    /// reads the band above `floor` without the ground below it, and a ridge, a change over
+    /// several bins, is found as well on half the pixels.
     pub(crate) fn measure_above(
         grey: &[u8],
         geo: Working,
