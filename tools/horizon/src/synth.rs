@@ -2145,4 +2145,37 @@ mod tests {
             "{sea_beyond} {over_the_sea}"
         );
     }
+
+    #[test]
+    fn a_calm_sea_mirrors_the_sky_at_grazing_angles_and_darkens_below_them() {
+        // The sea beyond a shore 10 km ahead, seen at 0.7° and at 14° of depression.
+        let coast = Coast {
+            normal: (1.0, 0.0),
+            distance: 10.0,
+            sea_beyond: true,
+            beach_m: 0.0,
+            mirror: true,
+        };
+        let luma = |c: [f32; 3]| 0.3 * c[0] + 0.59 * c[1] + 0.11 * c[2];
+        let at = |depression_deg: f32| {
+            let ahead = ALTITUDE_M / depression_deg.to_radians().tan();
+            let distance = ahead.hypot(ALTITUDE_M);
+            luma(coast.colour(1, (0.0, 0.0), (ahead, 0.0), distance))
+        };
+        let sky = luma(sky_colour(0.0));
+        let (far, near) = (at(0.7), at(14.0));
+        assert!(
+            (sky - far).abs() < 16.0,
+            "the far sea {far} is not the sky's {sky}"
+        );
+        assert!(near < far - 40.0, "the near sea {near}, the far {far}");
+        // Without the mirror, `coast`'s dark blue water.
+        let dark = Coast {
+            mirror: false,
+            ..coast
+        };
+        let ahead = ALTITUDE_M / 14f32.to_radians().tan();
+        let water = luma(dark.colour(1, (0.0, 0.0), (ahead, 0.0), ahead.hypot(ALTITUDE_M)));
+        assert!(water < near, "coast's water {water}, the calm sea {near}");
+    }
 }
