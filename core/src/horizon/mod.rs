@@ -748,21 +748,15 @@ impl HorizonDetector {
                     let upper =
                         higher_step(&context, &across(line, sky_ward), &chosen, sky_brighter)?;
                     above_across_the_frame(&context, chosen.line, upper.line, sky_ward)
-                        .then_some((upper, turn))
+                        .then_some(upper)
                 };
-                let best =
-                    |a: &(Scored, f32), b: &(Scored, f32)| a.0.explained.total_cmp(&b.0.explained);
-                let (coarse, turn) = TURNED_PROFILES_DEG
-                    .iter()
-                    .filter_map(|&turn| step_across(turn))
-                    .max_by(best)?;
-                let half = 0.5 * TURNED_PROFILE_STEP_DEG;
-                [turn - half, turn + half]
-                    .into_iter()
-                    .filter_map(step_across)
-                    .chain([(coarse, turn)])
-                    .max_by(best)
-                    .map(|(upper, _)| upper)
+                best_turn(
+                    &TURNED_PROFILES_DEG,
+                    &[0.5 * TURNED_PROFILE_STEP_DEG],
+                    step_across,
+                    |upper| upper.explained,
+                )
+                .map(|(upper, _)| upper)
             });
             if let Some(upper) = turned {
                 turned_from = Some(chosen.line);
@@ -1256,7 +1250,7 @@ fn higher_edge(
     if coverage < 0.33 || separation.explained < 0.5 * chosen.explained {
         return None;
     }
-    if !textured_ground_under_smooth_sky(c, chosen.line, line, sky_ward) {
+    if !textured_under_smoother_sky(c, (chosen.line, line, sky_ward), GROUND_TEXTURE) {
         return None;
     }
     Some(Scored::new(line, sky_brighter, separation, coverage))
@@ -1342,19 +1336,62 @@ const GROUND_BLUE_SHARE: f32 = 0.45;
 
 /// Textured ground in the band between a ground edge (`edge`) and a candidate horizon above
 /// it (`candidate`, the sky on its `sky_ward` side), under smoother sky: enough samples in
-/// both, and the band's texture above the sky's by [`GROUND_TEXTURE_RATIO`].
-fn textured_ground_under_smooth_sky(
+/// both, and the band's texture at least `ratio` times the sky's plus `plus` (for a ground
+/// edge: [`GROUND_TEXTURE_RATIO`] and half a level).
+fn textured_under_smoother_sky(
     c: &LineContext<'_>,
-    edge: Line,
-    candidate: Line,
-    sky_ward: f32,
+    (edge, candidate, sky_ward): (Line, Line, f32),
+    (ratio, plus): (f32, f32),
 ) -> bool {
     let texture = hough::band_textures(c.samples, edge, candidate, sky_ward, c.rho.step);
     // Written as the refusal it negates: a NaN texture is not a refusal.
     let refused = texture.between_count < 8
         || texture.above_count < 8
-        || texture.between < GROUND_TEXTURE_RATIO * texture.above + 0.5;
+        || texture.between < ratio * texture.above + plus;
     !refused
+}
+
+/// The ground edge's bar for [`textured_under_smoother_sky`].
+const GROUND_TEXTURE: (f32, f32) = (GROUND_TEXTURE_RATIO, 0.5);
+
+/// How well `line` splits the samples more than two rho steps on the sky side (`sky_ward`)
+/// of `chosen`: the part of the frame above a ground edge.
+fn separation_above(
+    c: &LineContext<'_>,
+    chosen: Line,
+    line: Line,
+    sky_ward: f32,
+) -> hough::Separation {
+    let (nx, ny) = chosen.normal();
+    let margin = 2.0 * c.rho.step;
+    hough::separation_of(c.samples, line, margin, |s| {
+        sky_ward * (s.x * nx + s.y * ny - chosen.rho) > margin
+    })
+}
+
+/// The best of `at(turn)` over the coarse `turns` (degrees), then about the best turn so far
+/// by each of `refinements` either side; `key` ranks. Ties keep the later candidate, and at
+/// each refinement the turn already found is the last.
+fn best_turn<T>(
+    turns: &[f32],
+    refinements: &[f32],
+    at: impl Fn(f32) -> Option<T>,
+    key: impl Fn(&T) -> f32,
+) -> Option<(T, f32)> {
+    let best = |a: &(T, f32), b: &(T, f32)| key(&a.0).total_cmp(&key(&b.0));
+    let mut found = turns
+        .iter()
+        .filter_map(|&turn| Some((at(turn)?, turn)))
+        .max_by(best)?;
+    for &step in refinements {
+        let turn = found.1;
+        found = [turn - step, turn + step]
+            .into_iter()
+            .filter_map(|t| Some((at(t)?, t)))
+            .chain([found])
+            .max_by(best)?;
+    }
+    Some(found)
 }
 
 /// The step above `chosen` that is the real horizon, found on a profile across the line
@@ -1374,18 +1411,14 @@ fn higher_step(
     // Sky, far ground and near ground are three regions: a step that splits the frame less
     // than half as well as the ground edge may still be the clear boundary of what lies
     // above that edge (sky over a wide hazy band), which is what the horizon must be.
-    let (nx, ny) = chosen.line.normal();
-    let margin = 2.0 * c.rho.step;
-    let above_chosen = hough::separation_of(c.samples, line, margin, |s| {
-        sky_ward * (s.x * nx + s.y * ny - chosen.line.rho) > margin
-    });
+    let above_chosen = separation_above(c, chosen.line, line, sky_ward);
     if separation.explained < MIN_EXPLAINED
         || (separation.explained < 0.5 * chosen.explained
             && above_chosen.explained < ABOVE_EDGE_EXPLAINED)
     {
         return None;
     }
-    if !textured_ground_under_smooth_sky(c, chosen.line, line, sky_ward) {
+    if !textured_under_smoother_sky(c, (chosen.line, line, sky_ward), GROUND_TEXTURE) {
         return None;
     }
     Some(Scored::new(line, sky_brighter, separation, chosen.coverage))
@@ -1428,47 +1461,27 @@ fn ridge_over_ramp(
     let sky_ward = 1.0;
     let ridge_at = |turn_deg: f32| {
         let line = turned_about_its_foot(chosen.line, turn_deg * PI / 180.0);
-        let profile = upper::Profile::measure_above(
+        upper::Profile::measure_above(
             grey,
             c.geo,
             c.camera,
             (line, sky_ward, c.rho.step, reach),
             (chosen.line, RIDGE_FLOOR_MARGIN),
-        );
-        Some((profile.ridge()?, turn_deg))
+        )
+        .ridge()
     };
-    let best = |a: &(upper::Ridge, f32), b: &(upper::Ridge, f32)| {
-        a.0.prominence.total_cmp(&b.0.prominence)
-    };
-    let (coarse, turn) = RIDGE_TURNS_DEG
-        .iter()
-        .filter_map(|&t| ridge_at(t))
-        .max_by(best)?;
-    let mut found = (coarse, turn);
-    for share in [0.5, 0.25] {
-        let (ridge, turn) = found;
-        let step = share * RIDGE_TURN_STEP_DEG;
-        found = [turn - step, turn + step]
-            .into_iter()
-            .filter_map(ridge_at)
-            .chain([(ridge, turn)])
-            .max_by(best)?;
-    }
-    let ridge = found.0;
+    let refinements = [0.5 * RIDGE_TURN_STEP_DEG, 0.25 * RIDGE_TURN_STEP_DEG];
+    let (ridge, _) = best_turn(&RIDGE_TURNS_DEG, &refinements, ridge_at, |r| r.prominence)?;
     if ridge.prominence < RIDGE_PROMINENCE {
         return None;
     }
-    let (nx, ny) = chosen.line.normal();
-    let margin = 2.0 * c.rho.step;
-    let above_chosen = hough::separation_of(c.samples, ridge.line, margin, |s| {
-        sky_ward * (s.x * nx + s.y * ny - chosen.line.rho) > margin
-    });
-    let texture = hough::band_textures(c.samples, chosen.line, ridge.line, sky_ward, c.rho.step);
-    // Written as the refusal it negates: a NaN is not a refusal.
+    let above_chosen = separation_above(c, chosen.line, ridge.line, sky_ward);
     if above_chosen.explained < RIDGE_ABOVE_EXPLAINED
-        || texture.between_count < 8
-        || texture.above_count < 8
-        || texture.between < RIDGE_BAND_TEXTURE_RATIO * texture.above
+        || !textured_under_smoother_sky(
+            c,
+            (chosen.line, ridge.line, sky_ward),
+            (RIDGE_BAND_TEXTURE_RATIO, 0.0),
+        )
     {
         return None;
     }

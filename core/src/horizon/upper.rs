@@ -402,14 +402,19 @@ impl Profile {
         let flank = |i: Option<usize>| i.and_then(|i| self.level(i));
         let below = flank(peak.checked_sub(RIDGE_FLANK))?;
         let above = flank(Some(peak + RIDGE_FLANK))?;
-        let offset = (peak as f32 - BELOW as f32) * self.rho_step;
         Some(Ridge {
-            line: Line {
-                angle: self.line.angle,
-                rho: self.line.rho + self.sky_ward * offset,
-            },
+            line: self.line_at(peak),
             prominence: (top - below).min(top - above),
         })
+    }
+
+    /// The line of the profile's direction through bin boundary `bin`.
+    fn line_at(&self, bin: usize) -> Line {
+        let offset = (bin as f32 - BELOW as f32) * self.rho_step;
+        Line {
+            angle: self.line.angle,
+            rho: self.line.rho + self.sky_ward * offset,
+        }
     }
 
     /// Bin `i`'s mean, sky's polarity up (brighter towards a brighter sky); `None` for a bin
@@ -524,11 +529,7 @@ impl Profile {
         let top = (BELOW - 1..=end)
             .rev()
             .find(|&k| clear(k).is_some_and(|(c, _)| c >= TOP_SHARE * largest))?;
-        let offset = (top as f32 - BELOW as f32) * self.rho_step;
-        Some(Line {
-            angle: self.line.angle,
-            rho: self.line.rho + self.sky_ward * offset,
-        })
+        Some(self.line_at(top))
     }
 
     /// The sky-most step of the sky's polarity within the reach above the line.
@@ -563,12 +564,8 @@ impl Profile {
                 if opposite {
                     return None;
                 }
-                let offset = (best.0 as f32 - BELOW as f32) * self.rho_step;
                 return Some(Step {
-                    line: Line {
-                        angle: self.line.angle,
-                        rho: self.line.rho + self.sky_ward * offset,
-                    },
+                    line: self.line_at(best.0),
                     contrast: best.1,
                 });
             }
