@@ -2,6 +2,9 @@
 """Passes a labelled frame set through a camera-and-link chain: a Bayer sensor, an analogue
 video link and a low-quality JPEG link, each optional.
 
+The analogue link is `analogue` (at 0.4 of the interference class's amplitude, as aerial's
+mixed links) or `interference` (the same link at the interference class's full amplitude).
+
 The tuning generators (`synth`, `terrain`) draw their own sensor noise and block coding; the
 held-out `aerial` generator's `mixed` class showed what they lack: a real demosaicking's
 colour noise, an analogue link's line jitter and libjpeg at half resolution. This script
@@ -23,7 +26,7 @@ import os
 
 from labelled_set import copy_labels, fail, frame_names
 
-STAGES = ("none", "bayer", "analogue", "jpeg", "jpeg-half")
+STAGES = ("none", "bayer", "analogue", "interference", "jpeg", "jpeg-half")
 
 try:
     import cv2
@@ -69,6 +72,8 @@ def main():
         fail(f"unknown stage {sorted(unknown)[0]!r} (stages: {', '.join(STAGES)})")
     if "jpeg" in stages and "jpeg-half" in stages:
         fail("jpeg and jpeg-half are one link: take one")
+    if "analogue" in stages and "interference" in stages:
+        fail("analogue and interference are one link: take one")
     names = frame_names(a.input)
     copy_labels(a.input, a.output)
 
@@ -76,6 +81,8 @@ def main():
     # One co-channel pattern per flight, at 0.4 of the interference class's amplitude (as
     # aerial's mixed links).
     pattern = (rng.uniform(0.03, 0.12) * 0.4, rng.uniform(4, 40), rng.uniform(-math.pi, math.pi))
+    # `interference`: the same link at the interference class's full amplitude.
+    strong = (pattern[0] / 0.4, *pattern[1:])
     previous = None
     for i, name in enumerate(names):
         path = os.path.join(a.input, name)
@@ -87,6 +94,8 @@ def main():
             rgb = bayer(rgb, rng)
         if "analogue" in stages:
             rgb = aerial_set.analogue(rgb, rng, i, *pattern)
+        if "interference" in stages:
+            rgb = aerial_set.analogue(rgb, rng, i, *strong)
         out = np.clip(np.round(rgb[..., ::-1] * 255), 0, 255).astype(np.uint8)
         if "jpeg" in stages or "jpeg-half" in stages:
             try:

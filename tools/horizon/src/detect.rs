@@ -3,7 +3,7 @@
 use crate::Error;
 use crate::image_io::{self, Image};
 use skyframe_core::horizon::{
-    Camera, EdgePoint, Frame, Horizon, HorizonDetector, Pixels, Sample, Workspace,
+    Camera, Complex32, EdgePoint, Frame, Horizon, HorizonDetector, Pixels, Sample, Workspace,
 };
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -17,6 +17,7 @@ pub struct Buffers {
     edges: Vec<EdgePoint>,
     accumulator: Vec<u16>,
     samples: Vec<Sample>,
+    spectrum: Vec<Complex32>,
 }
 
 impl Buffers {
@@ -29,6 +30,7 @@ impl Buffers {
             edges: vec![EdgePoint::ZERO; s.edges],
             accumulator: vec![0; s.accumulator],
             samples: vec![Sample::ZERO; s.samples],
+            spectrum: vec![Complex32::new(0.0, 0.0); s.spectrum],
         }
     }
 
@@ -39,6 +41,7 @@ impl Buffers {
             edges: &mut self.edges,
             accumulator: &mut self.accumulator,
             samples: &mut self.samples,
+            spectrum: &mut self.spectrum,
         }
     }
 }

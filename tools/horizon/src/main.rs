@@ -165,8 +165,13 @@ fn run_detect(
             sender.send(horizon, captured)?;
         }
         if verbose {
+            let pattern = runner
+                .detector
+                .last_interference_period()
+                .map(|p| format!(", a periodic pattern of {p:.1} working px notched out"))
+                .unwrap_or_default();
             eprintln!(
-                "frame {index}: {:?}, {} edge points, working image binned {}x",
+                "frame {index}: {:?}, {} edge points, working image binned {}x{pattern}",
                 runner.detector.last_outcome(),
                 runner.detector.last_edge_count(),
                 runner.detector.last_working_scale()
