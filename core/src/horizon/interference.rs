@@ -637,6 +637,40 @@ mod tests {
         }
     }
 
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(64))]
+
+        /// Any pixels, any size: a pattern or none, and a notch that stays in the image.
+        #[test]
+        fn any_pixels_are_read_without_a_fault(
+            w in 0usize..300,
+            h in 0usize..300,
+            seed in proptest::prelude::any::<u64>(),
+            period in 1.0f32..40.0,
+        ) {
+            let mut state = seed | 1;
+            let mut grey: Vec<u8> = (0..w * h)
+                .map(|i| {
+                    state ^= state << 13;
+                    state ^= state >> 7;
+                    state ^= state << 17;
+                    // Noise on a third, a pattern on the rest.
+                    if state % 3 == 0 {
+                        (state >> 8) as u8
+                    } else {
+                        (128.0 + 60.0 * libm::sinf(i as f32 * 2.0 * PI / period)) as u8
+                    }
+                })
+                .collect();
+            let geo = Working { scale: 1, width: w, height: h };
+            let mut scratch = vec![Complex32::new(0.0, 0.0); scratch_len(w, h)];
+            if let Some(p) = find(&grey, geo, &mut scratch) {
+                proptest::prop_assert!(p.period() >= MIN_PERIOD * 0.95 && p.period() <= MAX_PERIOD * 1.05);
+                remove(&mut grey, geo, p, &mut scratch);
+            }
+        }
+    }
+
     #[test]
     fn any_size_is_read_or_refused_without_a_fault() {
         for (w, h) in [

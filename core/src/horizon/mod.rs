@@ -1,7 +1,8 @@
 //! Horizon detection: roll and pitch from one camera frame, no heap, caller's buffers.
 //!
 //! Pipeline (each stage answers one of the seed's failures, thesis §6.2.3):
-//! 1. working image: luma, binned for frames wider than 400 px ([`edges`]);
+//! 1. working image: luma, binned for frames wider than 400 px ([`edges`]); an analogue
+//!    link's periodic pattern found in its spectrum and notched out ([`interference`]);
 //! 2. 3×3 Sobel gradient, threshold adapted to the frame's gradient distribution, thinned by
 //!    non-maximum suppression, edge points as a list;
 //! 3. radial distortion correction of the points only (conventions camera model);
