@@ -28,7 +28,7 @@ use microfft::Complex32;
 
 /// Largest transform along either axis (the working image is at most 200 px wide; a taller
 /// working image is left as it is).
-pub const MAX_SIDE: usize = 256;
+const MAX_SIDE: usize = 256;
 /// Periods a pattern may have, in working pixels: two (the working image's Nyquist) to 24
 /// (`aerial`'s links draw 4–40 frame pixels: 2–20 working pixels at 320 px, 1–10 at 640).
 const MIN_PERIOD: f32 = 2.0;
@@ -49,8 +49,6 @@ const NOTCH_BINS: f32 = 2.5;
 pub(crate) struct Pattern {
     pub fx: f32,
     pub fy: f32,
-    /// Its spike's power over that of the strongest bins nearer and farther in its direction.
-    pub isolation: f32,
 }
 
 impl Pattern {
@@ -59,21 +57,19 @@ impl Pattern {
     }
 }
 
-/// The transform along a side of `side` pixels: its length, the power of two at or over it
-/// (the side padded with zeros after the window), and the first pixel it reads (always 0).
-/// Cropping a 160 × 120 working image to its middle 128 columns halved the transform's
-/// time but put long periods (16 working pixels and more) within a few bins of the
-/// frame's own low frequencies, where their spikes no longer stood out (`terrain` `clean`
-/// through the chain's `interference` link, seed 18 at 320 px: 35 → 21 of 40 within 2°).
-fn fitted(side: usize) -> Option<(usize, usize)> {
-    let n = side.checked_next_power_of_two()?;
-    (16..=MAX_SIDE).contains(&n).then_some((n, 0))
-}
-
-/// The transform's size for a working image (see [`fitted`]), or `None` when a side is
-/// under 16 or over [`MAX_SIDE`] pixels.
+/// The transform's size for a working image: each side padded with zeros to the power of
+/// two at or over it, or `None` when that is under 16 or over [`MAX_SIDE`]. Cropping a
+/// 160 × 120 working image to its middle 128 columns halved the transform's time but put
+/// long periods (16 working pixels and more) within a few bins of the frame's own low
+/// frequencies, where their spikes no longer stood out (`terrain` `clean` through the
+/// chain's `interference` link, seed 18 at 320 px: 35 → 21 of 40 within 2°).
 pub(crate) fn transform_size(width: usize, height: usize) -> Option<(usize, usize)> {
-    Some((fitted(width)?.0, fitted(height)?.0))
+    let (nx, ny) = (
+        width.checked_next_power_of_two()?,
+        height.checked_next_power_of_two()?,
+    );
+    let fits = |n: usize| (16..=MAX_SIDE).contains(&n);
+    (fits(nx) && fits(ny)).then_some((nx, ny))
 }
 
 /// Complex values the scratch buffer must hold for a working image: the half spectrum
@@ -87,41 +83,26 @@ pub fn scratch_len(width: usize, height: usize) -> usize {
 /// The strongest isolated spike in the working image's spectrum, if there is one.
 pub(crate) fn find(grey: &[u8], geo: Working, scratch: &mut [Complex32]) -> Option<Pattern> {
     let (w, h) = (geo.width, geo.height);
-    let ((nx, x0), (ny, y0)) = (fitted(w)?, fitted(h)?);
-    // The pixels read along each side: all of a padded side, `n` of a cropped one.
-    let (used_x, used_y) = (w.min(nx), h.min(ny));
+    let (nx, ny) = transform_size(w, h)?;
     let half = nx / 2;
     let spectrum = scratch.get_mut(..ny * half)?;
     let pixels = grey.get(..w * h)?;
-    let mut sum = 0u32;
-    for row in pixels.chunks_exact(w).skip(y0).take(used_y) {
-        sum += row
-            .iter()
-            .skip(x0)
-            .take(used_x)
-            .map(|&v| u32::from(v))
-            .sum::<u32>();
-    }
-    let mean = sum as f32 / (used_x * used_y) as f32;
+    let mean = pixels.iter().map(|&v| u32::from(v)).sum::<u32>() as f32 / (w * h) as f32;
     // Hann windows along each axis: without one, the frame's borders (sky at the top,
     // ground at the bottom) are a step in the periodic transform, and its leakage a ridge.
     let mut window_x = [0.0f32; MAX_SIDE];
     let mut window_y = [0.0f32; MAX_SIDE];
-    for (i, v) in window_x.iter_mut().take(used_x).enumerate() {
-        *v = hann(i, used_x);
+    for (i, v) in window_x.iter_mut().take(w).enumerate() {
+        *v = hann(i, w);
     }
-    for (i, v) in window_y.iter_mut().take(used_y).enumerate() {
-        *v = hann(i, used_y);
+    for (i, v) in window_y.iter_mut().take(h).enumerate() {
+        *v = hann(i, h);
     }
     // Rows: a real transform of each image row, zero-padded to `nx`. Its DC bin holds the
     // Nyquist bin's value in its imaginary part; that column is not searched (a period of
     // two along x) and is cleared so the columns' transform sees the DC column alone.
     for (y, out) in spectrum.chunks_exact_mut(half).enumerate() {
-        let image_row = (y < used_y).then(|| (y0 + y) * w + x0);
-        let (Some(src), Some(&wy)) = (
-            image_row.and_then(|start| pixels.get(start..start + used_x)),
-            window_y.get(y),
-        ) else {
+        let (Some(src), Some(&wy)) = (pixels.get(y * w..(y + 1) * w), window_y.get(y)) else {
             // The padding under the image.
             out.fill(Complex32::new(0.0, 0.0));
             continue;
@@ -268,7 +249,6 @@ pub(crate) fn find(grey: &[u8], geo: Working, scratch: &mut [Complex32]) -> Opti
     Some(Pattern {
         fx: (kx as f32 + dx) / nx as f32,
         fy: (ky as f32 + dy) / ny as f32,
-        isolation,
     })
 }
 
