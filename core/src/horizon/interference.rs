@@ -228,9 +228,9 @@ pub(crate) fn find(grey: &[u8], geo: Working, scratch: &mut [Complex32]) -> Opti
         return None;
     }
     // The spike's centre between bins, from a Gaussian through the bin and its neighbours
-    // (the Hann window's lobe is nearly one): a bin is 1/128 of a cycle a pixel, and
-    // demodulating half a bin off turns the envelope through a third of a cycle across the
-    // image, which the low-pass then averages away.
+    // (the Hann window's lobe is nearly one): at 160 × 120 a bin is 1/256 of a cycle a pixel
+    // across and 1/128 down, and demodulating half a bin off turns the envelope through up to
+    // half a cycle across the image, which the low-pass then averages away.
     let centre = |before: f32, at: f32, after: f32| -> f32 {
         let (a, b, c) = (
             libm::logf(before.max(1e-30)),
