@@ -87,7 +87,7 @@ pub(crate) fn find(grey: &[u8], geo: Working, scratch: &mut [Complex32]) -> Opti
     let half = nx / 2;
     let spectrum = scratch.get_mut(..ny * half)?;
     let pixels = grey.get(..w * h)?;
-    let mean = pixels.iter().map(|&v| u32::from(v)).sum::<u32>() as f32 / (w * h) as f32;
+    let mean = mean_level(pixels);
     // Hann windows along each axis: without one, the frame's borders (sky at the top,
     // ground at the bottom) are a step in the periodic transform, and its leakage a ridge.
     let mut window_x = [0.0f32; MAX_SIDE];
@@ -276,7 +276,7 @@ pub(crate) fn remove(grey: &mut [u8], geo: Working, pattern: Pattern, scratch: &
     let Some(pixels) = grey.get_mut(..w * h) else {
         return;
     };
-    let mean = pixels.iter().map(|&v| u32::from(v)).sum::<u32>() as f32 / (w * h) as f32;
+    let mean = mean_level(pixels);
     // The image times the carrier e^{-i·2π(fx·x + fy·y)} (by rotation along each row from
     // its value at the row's start), summed into blocks.
     blocks.fill(Complex32::new(0.0, 0.0));
@@ -306,7 +306,7 @@ pub(crate) fn remove(grey: &mut [u8], geo: Working, pattern: Pattern, scratch: &
     let sigma_x = w as f32 / (2.0 * PI * NOTCH_BINS * BLOCK as f32);
     let sigma_y = h as f32 / (2.0 * PI * NOTCH_BINS * BLOCK as f32);
     for (rx, ry) in box_radii(sigma_x).into_iter().zip(box_radii(sigma_y)) {
-        blur_rows(blocks, bw, rx);
+        blur_rows(blocks, bw, bh, rx);
         blur_columns(blocks, bw, bh, ry);
     }
     let blocks: &[Complex32] = blocks;
@@ -373,31 +373,39 @@ fn box_radii(sigma: f32) -> [usize; 3] {
 
 /// Each row replaced by its mean over `2·radius + 1` columns, the window clipped at the
 /// row's ends (a mean over the pixels there are).
-fn blur_rows(field: &mut [Complex32], width: usize, radius: usize) {
-    let mut line = [Complex32::new(0.0, 0.0); MAX_SIDE];
-    for row in field.chunks_exact_mut(width) {
-        for (l, v) in line.iter_mut().zip(row.iter()) {
-            *l = *v;
-        }
-        box_mean(line.get(..width).unwrap_or(&[]), row, radius);
-    }
+fn blur_rows(field: &mut [Complex32], width: usize, height: usize, radius: usize) {
+    blur_lines(field, (height, width), (width, 1), radius);
 }
 
 /// As [`blur_rows`], down each column.
 fn blur_columns(field: &mut [Complex32], width: usize, height: usize, radius: usize) {
+    blur_lines(field, (width, height), (1, width), radius);
+}
+
+/// [`box_mean`] along `lines` lines of `length` values each: line `i`'s value `j` at
+/// `i·between + j·along` in `field`.
+fn blur_lines(
+    field: &mut [Complex32],
+    (lines, length): (usize, usize),
+    (between, along): (usize, usize),
+    radius: usize,
+) {
     let mut line = [Complex32::new(0.0, 0.0); MAX_SIDE];
     let mut out = [Complex32::new(0.0, 0.0); MAX_SIDE];
-    for x in 0..width {
-        for (y, l) in line.iter_mut().take(height).enumerate() {
-            *l = field.get(y * width + x).copied().unwrap_or_default();
+    for i in 0..lines {
+        for (j, l) in line.iter_mut().take(length).enumerate() {
+            *l = field
+                .get(i * between + j * along)
+                .copied()
+                .unwrap_or_default();
         }
         box_mean(
-            line.get(..height).unwrap_or(&[]),
-            out.get_mut(..height).unwrap_or(&mut []),
+            line.get(..length).unwrap_or(&[]),
+            out.get_mut(..length).unwrap_or(&mut []),
             radius,
         );
-        for (y, o) in out.iter().take(height).enumerate() {
-            if let Some(f) = field.get_mut(y * width + x) {
+        for (j, o) in out.iter().take(length).enumerate() {
+            if let Some(f) = field.get_mut(i * between + j * along) {
                 *f = *o;
             }
         }
@@ -424,6 +432,11 @@ fn box_mean(input: &[Complex32], out: &mut [Complex32], radius: usize) {
         let count = (i + radius).min(n - 1) + 1 - i.saturating_sub(radius);
         *o = sum / count as f32;
     }
+}
+
+/// The mean of the pixels (0 for none).
+fn mean_level(pixels: &[u8]) -> f32 {
+    pixels.iter().map(|&v| u32::from(v)).sum::<u32>() as f32 / pixels.len().max(1) as f32
 }
 
 /// The Hann window's value at sample `i` of `n`.
