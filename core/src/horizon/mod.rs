@@ -1034,6 +1034,9 @@ impl HorizonDetector {
         // frame filled with a deep blue sky, darker on the whole than its hazy ground (the
         // brighter cue −0.6 on `haze`, −0.8 to −1.5 on the sea), but such a sky still glows
         // at the horizon: its brightest part outshines the ground, and the sea's does not.
+        // Through a camera and link chain the sea's speckle can lift its brightest part to
+        // the ground's median, but not to the ground's own brightest part: a haze's glow
+        // comes up to the airlight that the far ground's bright fields fade to too.
         if sky_cues.brighter < 0.0 && !sky_outshines_ground(samples, chosen.horizon, 2.0 * rho.step)
         {
             confidence *= DARKER_SKY_CONFIDENCE;
@@ -1650,6 +1653,13 @@ const CODED_FRAME_BARS: [SplitBar; 2] = [
 const DARKER_SKY_CONFIDENCE: f32 = 0.25;
 /// The sky's brightest part: this share of its samples is darker.
 const SKY_BRIGHT_QUANTILE: f32 = 0.9;
+/// Most levels the brightest part of a sky darker than its ground falls short of the
+/// ground's brightest part (both [`SKY_BRIGHT_QUANTILE`]). On the tuning sets as rendered and
+/// through the camera-and-link chains, the sky over the trusted right lines fell short by 24
+/// levels at most (`synth` `haze` through the `interference` link); the sea seen from above
+/// that `calm-sea` passed through the chains offered as a sky, by 44 and more (33 frames
+/// past the gate).
+const SKY_GLOW_SHORTFALL: usize = 32;
 
 /// Share of its confidence a line keeps when the frame's halves contradict its roll (see
 /// `profile::Halves`). On the tuning sets passed through a camera-and-link chain
@@ -1699,7 +1709,8 @@ const FAMILY: usize = 3;
 const FAMILY_ANGLE: f32 = 1.5 * PI / 180.0;
 
 /// Whether the brightest part of the sky side of `horizon` (its [`SKY_BRIGHT_QUANTILE`]
-/// luma) is at least as bright as the ground side's median: a sky glows at the horizon even
+/// luma) is at least as bright as the ground side's median, and within
+/// [`SKY_GLOW_SHORTFALL`] of the ground's own brightest part: a sky glows at the horizon even
 /// where its blue zenith is darker than a hazy ground; a sea seen from above does not. Samples
 /// within `band` of the line, and clipped ones, are left out.
 fn sky_outshines_ground(samples: &[Sample], horizon: HorizonLine, band: f32) -> bool {
@@ -1735,7 +1746,9 @@ fn sky_outshines_ground(samples: &[Sample], horizon: HorizonLine, band: f32) -> 
             })
             .unwrap_or(BINS)
     };
-    quantile(&sky, SKY_BRIGHT_QUANTILE) >= quantile(&ground, 0.5)
+    let sky_glow = quantile(&sky, SKY_BRIGHT_QUANTILE);
+    sky_glow >= quantile(&ground, 0.5)
+        && sky_glow + SKY_GLOW_SHORTFALL * BINS / 256 >= quantile(&ground, SKY_BRIGHT_QUANTILE)
 }
 
 /// A candidate with at least [`FAMILY`] − 1 others parallel to it (either polarity) and not

@@ -1369,6 +1369,54 @@ fn a_sea_seen_steeply_down_is_not_a_sky_frame_after_frame() {
     });
 }
 
+/// Samples either side of a level line through the centre: `sky` above it, `ground` below,
+/// each `(luma, how many)`.
+fn samples_across_a_level_line(sky: &[(f32, usize)], ground: &[(f32, usize)]) -> Vec<Sample> {
+    let mut out = Vec::new();
+    for (side, y) in [(sky, -0.3f32), (ground, 0.3)] {
+        for &(luma, n) in side {
+            for k in 0..n {
+                let x = -0.5 + k as f32 / n as f32;
+                out.push(Sample {
+                    x,
+                    y,
+                    luma,
+                    ..Sample::ZERO
+                });
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn a_sky_darker_than_its_ground_must_glow_up_to_the_grounds_bright_fields() {
+    let level = HorizonLine {
+        camera_roll_rad: 0.0,
+        offset: 0.0,
+    };
+    let outshines = |sky: &[(f32, usize)], ground: &[(f32, usize)]| {
+        sky_outshines_ground(&samples_across_a_level_line(sky, ground), level, 0.05)
+    };
+    // A hazy frame: a deep blue sky glowing at the horizon over bright hazy ground.
+    assert!(outshines(
+        &[(150.0, 80), (190.0, 20)],
+        &[(170.0, 55), (180.0, 30), (200.0, 15)]
+    ));
+    // A sea seen from above through a camera and an analogue link (levels as measured on
+    // `synth` `calm-sea` through the chains): its speckle lifts its brightest tenth over the
+    // median of dark crops, but 116 levels under the bright fields among them.
+    assert!(!outshines(
+        &[(56.0, 80), (74.0, 20)],
+        &[(60.0, 55), (100.0, 30), (190.0, 15)]
+    ));
+    // The same sea without the speckle: under the ground's median as well.
+    assert!(!outshines(
+        &[(56.0, 100)],
+        &[(60.0, 55), (100.0, 30), (190.0, 15)]
+    ));
+}
+
 #[test]
 fn a_deep_blue_sky_over_a_bright_haze_is_trusted() {
     // A frame filled with a deep blue sky over a sliver of bright hazy ground: the sky is the

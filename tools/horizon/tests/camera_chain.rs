@@ -22,18 +22,30 @@ fn h264_script() -> PathBuf {
 /// `frames` frames of `terrain` `clean` of `seed` at `size` (`WIDTHxHEIGHT`), kept by the bench
 /// under `dir`: the set's directory.
 fn rendered_clean(dir: &Path, seed: u32, size: &str, frames: u32) -> PathBuf {
+    rendered(dir, ("terrain", "clean"), seed, size, frames)
+}
+
+/// `frames` frames of a tuning generator's class (`(generator, class)`) of `seed` at `size`,
+/// kept by the bench under `dir`: the set's directory.
+fn rendered(
+    dir: &Path,
+    (generator, class): (&str, &str),
+    seed: u32,
+    size: &str,
+    frames: u32,
+) -> PathBuf {
     let _ = std::fs::remove_dir_all(dir);
     let out = binary()
-        .args(["bench", "--json", "--generator", "terrain", "--seed"])
+        .args(["bench", "--json", "--generator", generator, "--seed"])
         .arg(seed.to_string())
-        .args(["--only", "clean", "--sizes", size, "--frames"])
+        .args(["--only", class, "--sizes", size, "--frames"])
         .arg(frames.to_string())
         .args(["--python", &python(), "--keep"])
         .arg(dir)
         .output()
         .expect("runs bench");
     succeeded(out);
-    dir.join(format!("terrain-clean-{size}"))
+    dir.join(format!("{generator}-{class}-{size}"))
 }
 
 /// `terrain` `clean` of `seed` at `size` (`WIDTHxHEIGHT`), 40 frames, passed through the chain's
@@ -117,6 +129,64 @@ fn a_bent_shaken_interference_pattern_is_notched_out_of_a_hazy_horizon() {
         false_confident <= 0.05,
         "{false_confident} false confidence"
     );
+}
+
+/// `synth` `calm-sea` seed 1 at 320×240 through the whole chain (chain seeds 1 and 2). Its
+/// frames 24–31 look steeply down at the shore, the horizon out of view: a sea seen from
+/// above is darker than its fields, so it is not trusted as a sky unless its brightest part
+/// glows as a sky does (`sky_outshines_ground`). The chain's speckle lifted the sea's
+/// brightest tenth to the fields' median, and two of those frames were trusted on each
+/// chain seed; the sea stays far under the fields' own brightest part.
+#[test]
+fn a_sea_seen_from_above_through_the_chain_is_not_trusted_as_a_sky() {
+    let dir = std::env::temp_dir().join(format!("skyframe-chain-test-{}-sea", std::process::id()));
+    let set = rendered(&dir, ("synth", "calm-sea"), 1, "320x240", 40);
+    for chain_seed in [1, 2] {
+        let chained = dir.join(format!("chain_{chain_seed}"));
+        succeeded(
+            Command::new(python())
+                .arg(script())
+                .arg(&set)
+                .arg(&chained)
+                .args(["--stages", "bayer,analogue,jpeg-half"])
+                .args(["--seed", &chain_seed.to_string()])
+                .output()
+                .expect("runs python"),
+        );
+        let csv = succeeded(
+            binary()
+                .arg("detect")
+                .arg(&chained)
+                .arg("--camera")
+                .arg(chained.join("camera.toml"))
+                .output()
+                .expect("runs detect"),
+        );
+        let truth = std::fs::read_to_string(chained.join("truth.csv")).expect("truth.csv");
+        let out_of_view: Vec<&str> = truth
+            .lines()
+            .skip(1)
+            .filter(|l| l.ends_with(",0"))
+            .filter_map(|l| l.split(',').next())
+            .collect();
+        assert_eq!(out_of_view.len(), 8, "frames with the horizon out of view");
+        let trusted: Vec<&str> = csv
+            .lines()
+            .skip(1)
+            .filter(|l| {
+                let f: Vec<&str> = l.split(',').collect();
+                out_of_view.contains(&f[0])
+                    && f[3]
+                        .parse::<f32>()
+                        .is_ok_and(|c| c >= skyframe_horizon::accuracy::gate())
+            })
+            .collect();
+        assert!(
+            trusted.is_empty(),
+            "chain seed {chain_seed}: trusted {trusted:?}"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// Runs the chain on `input` with `stages`; its exit code and standard error.
