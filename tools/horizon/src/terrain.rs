@@ -255,6 +255,14 @@ impl TerrainRenderer {
         };
         let t0 = index as f32 * 0.2;
         let (mut roll0, mut pitch0, heading0) = attitude_at(t0);
+        // The flight's rates at the frame's instant, for the motion blur and rolling shutter
+        // below: taken before a `no-horizon` frame is turned to look far up or down, or the
+        // turn itself (45–70° in 10 ms) is smeared over the rows and brings the horizon back
+        // into the bottom or top rows of a frame whose truth says it is out of view.
+        let (rate_roll, rate_pitch) = {
+            let (r1, p1, _) = attitude_at(t0 + 0.01);
+            ((r1 - roll0) / 0.01, (p1 - pitch0) / 0.01)
+        };
         let mut visible = true;
         if self.class == Class::NoHorizon {
             // Half the frames look far up or down (the horizon out of the frame), the rest
@@ -277,10 +285,6 @@ impl TerrainRenderer {
         let exposure = self.exposure(&mut rng, index);
         // Motion blur and rolling shutter: four instants across the exposure, rows read out
         // over `readout` seconds; the truth is the principal point row's mid-exposure.
-        let (rate_roll, rate_pitch) = {
-            let (r1, p1, _) = attitude_at(t0 + 0.01);
-            ((r1 - roll0) / 0.01, (p1 - pitch0) / 0.01)
-        };
         let shutter = if matches!(self.class, Class::Mixed | Class::SensorNoise) {
             0.012
         } else {
@@ -843,6 +847,39 @@ mod tests {
         for (got, want) in b.iter().zip([1.0 / n, 0.3 / n, -0.1 / n]) {
             assert!((got - want).abs() < 1e-5, "{b:?}");
         }
+    }
+
+    /// A `no-horizon` frame turned to look far up shows sky in every row: its motion blur and
+    /// rolling shutter are the flight's, not the turn's (which smeared the turn over the rows
+    /// and put the ground back into the bottom rows of frames whose truth has it out of view).
+    #[test]
+    fn a_frame_looking_far_up_has_no_ground_in_it() {
+        let mut looked_up = 0;
+        for seed in 1..=6 {
+            let r = TerrainRenderer::new(Class::NoHorizon, 160, 120, seed);
+            for index in (0..16).step_by(2) {
+                let (image, truth) = r.render(index);
+                assert!(!truth.visible);
+                if truth.pitch_deg < 45.0 {
+                    continue;
+                }
+                looked_up += 1;
+                // Blue over red, row by row: the sky's; the ground's fields and forest are
+                // redder than they are blue.
+                for v in 0..120 {
+                    let row = &image.data[v * 160 * 3..(v + 1) * 160 * 3];
+                    let (red, blue) = row.chunks_exact(3).fold((0u32, 0u32), |(r, b), p| {
+                        (r + u32::from(p[0]), b + u32::from(p[2]))
+                    });
+                    assert!(
+                        blue > red,
+                        "seed {seed} frame {index} (pitch {:.1}°) row {v}: blue {blue} red {red}",
+                        truth.pitch_deg
+                    );
+                }
+            }
+        }
+        assert!(looked_up >= 8, "{looked_up} frames looked far up");
     }
 
     /// A pixel's samples average to its centre, the integer point: no half-pixel slip.
