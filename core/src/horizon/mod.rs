@@ -1655,10 +1655,10 @@ const DARKER_SKY_CONFIDENCE: f32 = 0.25;
 const SKY_BRIGHT_QUANTILE: f32 = 0.9;
 /// Most levels the brightest part of a sky darker than its ground falls short of the
 /// ground's brightest part (both [`SKY_BRIGHT_QUANTILE`]). On the tuning sets as rendered and
-/// through the camera-and-link chains, the sky over the trusted right lines fell short by 24
-/// levels at most (`synth` `haze` through the `interference` link); the sea seen from above
-/// that `calm-sea` passed through the chains offered as a sky, by 44 and more (33 frames
-/// past the gate).
+/// through the camera-and-link chains, the sky over the right lines fell short by 24 levels
+/// at most (312 frames, `synth` `haze` through the `interference` link the closest); the sea
+/// seen from above that `calm-sea` passed through the chains offered as a sky, by 44 and more
+/// (19 frames past the gate).
 const SKY_GLOW_SHORTFALL: usize = 32;
 
 /// Share of its confidence a line keeps when the frame's halves contradict its roll (see

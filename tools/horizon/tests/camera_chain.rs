@@ -175,10 +175,11 @@ fn a_sea_seen_from_above_through_the_chain_is_not_trusted_as_a_sky() {
             .skip(1)
             .filter(|l| {
                 let f: Vec<&str> = l.split(',').collect();
-                out_of_view.contains(&f[0])
-                    && f[3]
-                        .parse::<f32>()
-                        .is_ok_and(|c| c >= skyframe_horizon::accuracy::gate())
+                matches!((f.first(), f.get(3)), (Some(frame), Some(confidence))
+                    if out_of_view.contains(frame)
+                        && confidence
+                            .parse::<f32>()
+                            .is_ok_and(|c| c >= skyframe_horizon::accuracy::gate()))
             })
             .collect();
         assert!(
