@@ -57,27 +57,37 @@ fn chained(seed: u32, size: &str, stages: &str, chain_seed: u32) -> serde_json::
     ));
     let rendered = rendered_clean(&dir, seed, size, 40);
     let chained = dir.join("chain_clean");
-    let out = Command::new(python())
-        .arg(script())
-        .arg(rendered)
-        .arg(&chained)
-        .args(["--stages", stages, "--seed", &chain_seed.to_string()])
-        .output()
-        .expect("runs python");
-    succeeded(out);
+    pass_through_chain(&rendered, &chained, stages, chain_seed);
     let accuracy = score_real(&chained, "chain_clean");
     let _ = std::fs::remove_dir_all(&dir);
     eprintln!("{accuracy}");
     accuracy
 }
 
-fn within_2deg_and_false_confidence(accuracy: &serde_json::Value) -> (f64, f64) {
-    (
-        accuracy["within_2deg"].as_f64().expect("within_2deg"),
-        accuracy["false_confident_rate"]
-            .as_f64()
-            .expect("false_confident_rate"),
-    )
+/// Passes the set `input` through the chain's `stages` with `chain_seed` into `output`.
+fn pass_through_chain(input: &Path, output: &Path, stages: &str, chain_seed: u32) {
+    succeeded(
+        Command::new(python())
+            .arg(script())
+            .arg(input)
+            .arg(output)
+            .args(["--stages", stages, "--seed", &chain_seed.to_string()])
+            .output()
+            .expect("runs python"),
+    );
+}
+
+/// At least `min_within` of the frames within 2°, and false confidence at most 0.05.
+fn assert_read_or_not_trusted(accuracy: &serde_json::Value, min_within: f64) {
+    let within = accuracy["within_2deg"].as_f64().expect("within_2deg");
+    let false_confident = accuracy["false_confident_rate"]
+        .as_f64()
+        .expect("false_confident_rate");
+    assert!(within >= min_within, "{within} within 2°");
+    assert!(
+        false_confident <= 0.05,
+        "{false_confident} false confidence"
+    );
 }
 
 /// `terrain` `clean` seed 16 at 320×240 through the whole chain (chain seed 34): the Bayer
@@ -89,13 +99,7 @@ fn within_2deg_and_false_confidence(accuracy: &serde_json::Value) -> (f64, f64) 
 /// 0.075).
 #[test]
 fn a_hazy_horizon_through_a_sensor_and_two_links_is_read_or_not_trusted() {
-    let (within, false_confident) =
-        within_2deg_and_false_confidence(&chained(16, "320x240", "bayer,analogue,jpeg-half", 34));
-    assert!(within >= 0.6, "{within} within 2°");
-    assert!(
-        false_confident <= 0.05,
-        "{false_confident} false confidence"
-    );
+    assert_read_or_not_trusted(&chained(16, "320x240", "bayer,analogue,jpeg-half", 34), 0.6);
 }
 
 /// `terrain` `clean` seed 18 at 640×480 through libjpeg (chain seed 123): slices of 16 rows
@@ -104,13 +108,7 @@ fn a_hazy_horizon_through_a_sensor_and_two_links_is_read_or_not_trusted() {
 /// 0.125 → 0.025 (0.10 with the turn and the contradicted-roll term only).
 #[test]
 fn a_slice_concealed_from_the_previous_frame_is_not_trusted_as_a_level_horizon() {
-    let (within, false_confident) =
-        within_2deg_and_false_confidence(&chained(18, "640x480", "jpeg", 123));
-    assert!(within >= 0.6, "{within} within 2°");
-    assert!(
-        false_confident <= 0.05,
-        "{false_confident} false confidence"
-    );
+    assert_read_or_not_trusted(&chained(18, "640x480", "jpeg", 123), 0.6);
 }
 
 /// `terrain` `clean` seed 18 at 320×240 through the analogue link at the `interference`
@@ -122,13 +120,7 @@ fn a_slice_concealed_from_the_previous_frame_is_not_trusted_as_a_level_horizon()
 /// 27 trusted (9 before).
 #[test]
 fn a_bent_shaken_interference_pattern_is_notched_out_of_a_hazy_horizon() {
-    let (within, false_confident) =
-        within_2deg_and_false_confidence(&chained(18, "320x240", "interference", 605));
-    assert!(within >= 0.8, "{within} within 2°");
-    assert!(
-        false_confident <= 0.05,
-        "{false_confident} false confidence"
-    );
+    assert_read_or_not_trusted(&chained(18, "320x240", "interference", 605), 0.8);
 }
 
 /// `synth` `calm-sea` seed 1 at 320×240 through the whole chain (chain seeds 1 and 2). Its
@@ -143,16 +135,7 @@ fn a_sea_seen_from_above_through_the_chain_is_not_trusted_as_a_sky() {
     let set = rendered(&dir, ("synth", "calm-sea"), 1, "320x240", 40);
     for chain_seed in [1, 2] {
         let chained = dir.join(format!("chain_{chain_seed}"));
-        succeeded(
-            Command::new(python())
-                .arg(script())
-                .arg(&set)
-                .arg(&chained)
-                .args(["--stages", "bayer,analogue,jpeg-half"])
-                .args(["--seed", &chain_seed.to_string()])
-                .output()
-                .expect("runs python"),
-        );
+        pass_through_chain(&set, &chained, "bayer,analogue,jpeg-half", chain_seed);
         let csv = succeeded(
             binary()
                 .arg("detect")
