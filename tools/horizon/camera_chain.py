@@ -48,9 +48,10 @@ def bayer(rgb, rng):
     return aerial_set.sensor_noise(linear(rgb), rng, electrons=rng.uniform(300, 900))
 
 
-def jpeg(bgr, rng, previous, half):
-    """libjpeg at quality 15-40, full or half resolution, then aerial's lost and torn slices."""
-    out = aerial_set.jpeg_round_trip(bgr, int(rng.uniform(15, 40)), half)
+def jpeg(bgr, rng, previous, half, quality):
+    """libjpeg at a quality drawn from `quality` (lowest, highest), full or half resolution,
+    then aerial's lost and torn slices."""
+    out = aerial_set.jpeg_round_trip(bgr, int(rng.uniform(*quality)), half)
     aerial_set.lose_slices(out, rng, previous)
     return out
 
@@ -65,7 +66,19 @@ def main():
         help=f"comma-separated, of {', '.join(STAGES)} (default: %(default)s)",
     )
     p.add_argument("--seed", type=int, default=0, help="the chain's random stream")
+    p.add_argument(
+        "--jpeg-quality",
+        default="15,40",
+        help="the JPEG link's quality range LOWEST,HIGHEST (default %(default)s, the mixed "
+        "class's links; aerial's transmission class codes at 4,22)",
+    )
     a = p.parse_args()
+    try:
+        quality = tuple(int(q) for q in a.jpeg_quality.split(","))
+    except ValueError:
+        quality = ()
+    if len(quality) != 2 or not 1 <= quality[0] <= quality[1] <= 100:
+        fail(f"--jpeg-quality {a.jpeg_quality!r}: want LOWEST,HIGHEST within 1-100")
     stages = set(a.stages.split(","))
     unknown = stages - set(STAGES)
     if unknown:
@@ -99,7 +112,7 @@ def main():
         out = np.clip(np.round(rgb[..., ::-1] * 255), 0, 255).astype(np.uint8)
         if "jpeg" in stages or "jpeg-half" in stages:
             try:
-                out = jpeg(out, rng, previous, "jpeg-half" in stages)
+                out = jpeg(out, rng, previous, "jpeg-half" in stages, quality)
             except RuntimeError as e:
                 fail(str(e))
             previous = out

@@ -12,7 +12,7 @@ use super::frame::{Frame, Pixels, luma};
 
 /// Block side of the codecs this looks for (JPEG's and MPEG's luma blocks; MPEG's 16-pixel
 /// macroblocks fall on the same grid).
-const BLOCK: usize = 8;
+pub(crate) const BLOCK: usize = 8;
 
 /// How much larger the luma steps between neighbouring pixels are on the strongest of the 8
 /// grid phases than on the others, on average, across columns and across rows together.
@@ -34,6 +34,9 @@ pub(crate) struct Grid {
     pub weaker_axis: f32,
     pub column_phase: usize,
     pub row_phase: usize,
+    /// Side of the coded blocks in frame pixels: [`BLOCK`], or twice it for a frame coded
+    /// at half resolution and scaled back up (see [`HALF_RESOLUTION_CONTRAST`]).
+    pub tile: usize,
 }
 
 /// [`Grid`] of a frame.
@@ -66,7 +69,9 @@ fn contrast_of<'a, I: Iterator<Item = u8>>(
     let row_every = 8 * scale_down(height, 240);
     let band_every = 2 * scale_down(height, 240);
     let column_every = 4 * scale_down(width, 320);
-    let mut across_columns = [0u64; BLOCK];
+    // Across columns by x mod 16 (two blocks), folded to x mod 8 below: the same sums, and
+    // whether every other border is missing (a frame coded at half resolution).
+    let mut across_two_blocks = [0u64; 2 * BLOCK];
     let mut across_rows = [0u64; BLOCK];
     for y in (BLOCK / 2..height).step_by(row_every) {
         let mut row = lumas(frame.row(y));
@@ -74,12 +79,16 @@ fn contrast_of<'a, I: Iterator<Item = u8>>(
             continue;
         };
         for (x, here) in (1..width).zip(row) {
-            if let Some(bin) = across_columns.get_mut(x % BLOCK) {
+            if let Some(bin) = across_two_blocks.get_mut(x % (2 * BLOCK)) {
                 *bin += u64::from(here.abs_diff(previous));
             }
             previous = here;
         }
     }
+    let across_columns: [u64; BLOCK] = core::array::from_fn(|i| {
+        across_two_blocks.get(i).copied().unwrap_or(0)
+            + across_two_blocks.get(i + BLOCK).copied().unwrap_or(0)
+    });
     for band in (1..height / BLOCK).step_by(band_every) {
         for y in band * BLOCK..(band + 1) * BLOCK {
             let above = lumas(frame.row(y - 1)).step_by(column_every);
@@ -102,14 +111,29 @@ fn contrast_of<'a, I: Iterator<Item = u8>>(
     };
     let (column_grid, column_rest, column_phase) = contrast(&across_columns);
     let (row_grid, row_rest, row_phase) = contrast(&across_rows);
+    // The borders of a block coded at half resolution are 16 frame pixels apart: of the two
+    // columns on the strongest 8-phase, the one half a tile away steps far less. (The rows
+    // are sampled in bands of 8 and cannot tell; a codec halves both sides.)
+    let on_phase = |phase: usize| across_two_blocks.get(phase).copied().unwrap_or(0) as f32;
+    let (near, far) = (on_phase(column_phase), on_phase(column_phase + BLOCK));
+    let half_resolution = near.max(far) + 1.0 >= HALF_RESOLUTION_CONTRAST * (near.min(far) + 1.0);
     Grid {
         contrast: (column_grid + row_grid + 1.0) / (column_rest + row_rest + 1.0),
         weaker_axis: ((column_grid + 1.0) / (column_rest + 1.0))
             .min((row_grid + 1.0) / (row_rest + 1.0)),
         column_phase,
         row_phase,
+        tile: if half_resolution { 2 * BLOCK } else { BLOCK },
     }
 }
+
+/// How many times more a half-resolution frame's block borders step than the columns half a
+/// tile from them (see [`Grid::tile`]). Over the `synth` and `terrain` tuning sets at 320×240
+/// through `camera_chain.py --jpeg-quality 4,22` (a numpy model of this measure, on the
+/// frames whose grid contrast reaches `CODED_IN_BLOCKS`): at half resolution 3.6 for the 1st
+/// percentile of 2627 frames, 11 the median; at full resolution 1.5 for the 99th of 3755;
+/// the H.264 link's frames (16-pixel macroblocks, 4×4 and 8×8 transforms) 1.1–3.5.
+const HALF_RESOLUTION_CONTRAST: f32 = 3.0;
 
 /// Whether a block grid may show in `grey`, the working image binned by `geo.scale` (1 or 2):
 /// its steps between neighbouring working pixels are at least [`GRID_HINT`] times larger on
@@ -226,6 +250,72 @@ pub(crate) fn deblock(grey: &mut [u8], geo: Working, grid: Grid) {
     }
 }
 
+/// Most taps either side of the centre in [`smooth_tiles`]: a 16-pixel tile at scale 1.
+const MAX_HALF_TAPS: usize = 8;
+
+/// Smooths a working image binned by `geo.scale` over tiles `tile` frame pixels wide, rows
+/// then columns, with a kernel as wide as a tile (ends at half weight when it is an even
+/// number of working pixels, so that the kernel is centred). A frame coded at half
+/// resolution and a low quality is tiles of nearly flat luma, and a tilted horizon through
+/// them is a staircase whose treads are level edges: they vote for level lines only, and
+/// the Hough stage finds the level borders of a row of tiles rather than the horizon. A
+/// kernel one tread wide turns a staircase into a ramp along the horizon's own direction.
+pub(crate) fn smooth_tiles(grey: &mut [u8], geo: Working, tile: usize) {
+    let scale = geo.scale.max(1);
+    let taps = (tile + scale / 2) / scale;
+    if taps < 2 || taps / 2 > MAX_HALF_TAPS {
+        return;
+    }
+    let (width, height) = (geo.width, geo.height);
+    for y in 0..height {
+        smooth_line(grey, (y * width, 1, width), taps);
+    }
+    for x in 0..width {
+        smooth_line(grey, (x, width, height), taps);
+    }
+}
+
+/// [`smooth_tiles`] along one line of `grey`: `len` pixels from `start`, `step` apart, each
+/// replaced by its kernel's weighted mean (the line's end pixels repeated beyond it).
+fn smooth_line(grey: &mut [u8], (start, step, len): (usize, usize, usize), taps: usize) {
+    let half = taps / 2;
+    // Weights doubled: 2 inside, 1 at the ends of an even kernel; they sum to 2·taps.
+    let end_weight = if taps % 2 == 0 { 1 } else { 2 };
+    let total = 2 * taps as u32;
+    let index = |i: usize| start + i * step;
+    let Some(&first) = grey.get(start) else {
+        return;
+    };
+    // The originals of the `half` pixels before the current one (already overwritten).
+    let mut before = [first; MAX_HALF_TAPS];
+    for i in 0..len {
+        let original = grey.get(index(i)).copied().unwrap_or(first);
+        let mut sum = 2 * u32::from(original);
+        for o in 1..=half {
+            let weight = if o == half { end_weight } else { 2 };
+            let earlier = if o <= i {
+                before
+                    .get((i - o) % MAX_HALF_TAPS)
+                    .copied()
+                    .unwrap_or(first)
+            } else {
+                first
+            };
+            let later = grey
+                .get(index((i + o).min(len - 1)))
+                .copied()
+                .unwrap_or(original);
+            sum += weight * (u32::from(earlier) + u32::from(later));
+        }
+        if let Some(slot) = before.get_mut(i % MAX_HALF_TAPS) {
+            *slot = original;
+        }
+        if let Some(p) = grey.get_mut(index(i)) {
+            *p = ((sum + total / 2) / total) as u8;
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -271,6 +361,65 @@ mod tests {
         }
     }
 
+    /// Flat tiles `tile` pixels wide of `scene`'s luma at their centres.
+    fn flat_tiles(width: usize, height: usize, tile: usize) -> Vec<u8> {
+        frame_of(width, height, |x, y| {
+            let (cx, cy) = ((x / tile) * tile + tile / 2, (y / tile) * tile + tile / 2);
+            scene(cx, cy) as u8
+        })
+    }
+
+    #[test]
+    fn a_frame_coded_at_half_resolution_has_tiles_of_sixteen() {
+        for (tile, expected) in [(8, BLOCK), (16, 2 * BLOCK)] {
+            let grey = flat_tiles(320, 240, tile);
+            let g = grid(&Frame::grey(320, 240, &grey).expect("fits"));
+            assert!(g.contrast > 3.0, "tiles of {tile}: {g:?}");
+            assert_eq!(g.tile, expected, "tiles of {tile}: {g:?}");
+        }
+        // A camera's frame has no tiles either way.
+        let grey = frame_of(320, 240, |x, y| scene(x, y) as u8);
+        assert_eq!(
+            grid(&Frame::grey(320, 240, &grey).expect("fits")).tile,
+            BLOCK
+        );
+    }
+
+    #[test]
+    fn smoothing_over_a_tile_turns_a_staircase_into_a_ramp_along_the_line() {
+        // A working image at scale 2 of a line rising 25° to the right, drawn in 8-pixel tiles:
+        // each tile column holds the line's height at its own centre (a staircase of treads).
+        let geo = Working::with_scale(320, 240, 2);
+        let slope = libm::tanf(25.0f32.to_radians());
+        let line = |x: f32| 60.0 - slope * (x - 80.0);
+        let mut grey = frame_of(geo.width, geo.height, |x, y| {
+            let tread = line(((x / 8) * 8) as f32 + 3.5);
+            if (y as f32) < tread { 180 } else { 80 }
+        });
+        // Each column's edge by area: its sky rows counted as (value − 80) / 100 each, the
+        // edge half a row above the next (pixel centres at the integers). Smoothing keeps the
+        // area of a column away from the image's top and bottom; what it changes is where
+        // that area comes from. The largest distance from the line, away from the sides.
+        let worst = |grey: &[u8]| {
+            (16..geo.width - 16)
+                .map(|x| {
+                    let sky_rows: f32 = (0..geo.height)
+                        .map(|y| (f32::from(grey[y * geo.width + x]) - 80.0) / 100.0)
+                        .sum();
+                    libm::fabsf(sky_rows - 0.5 - line(x as f32))
+                })
+                .fold(0.0f32, f32::max)
+        };
+        let before = worst(&grey);
+        smooth_tiles(&mut grey, geo, 16);
+        let after = worst(&grey);
+        assert!(
+            before > 1.5,
+            "the staircase is {before} px off the line at worst"
+        );
+        assert!(after < 0.5, "smoothed: {after} px off the line at worst");
+    }
+
     #[test]
     fn rgb_and_grey_read_the_same_luma() {
         let grey = frame_of(64, 48, |x, y| ((x / 8 + y / 8) * 20) as u8);
@@ -299,6 +448,7 @@ mod tests {
     fn deblocked(frame_phase: usize) -> (Vec<u8>, Vec<u8>, Grid) {
         let geo = Working::with_scale(2 * WIDTH, 2 * HEIGHT, 2);
         let grid = Grid {
+            tile: BLOCK,
             contrast: 10.0,
             weaker_axis: 10.0,
             column_phase: frame_phase,
@@ -349,6 +499,7 @@ mod tests {
             &mut after,
             coarse,
             Grid {
+                tile: BLOCK,
                 column_phase: 0,
                 row_phase: 0,
                 ..grid

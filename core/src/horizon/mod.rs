@@ -319,6 +319,8 @@ pub struct HorizonDetector {
     edge_count: usize,
     working_scale: usize,
     interference: Option<f32>,
+    /// Side (frame pixels) of the coded blocks the last frame was found to be made of.
+    coded_tile: Option<usize>,
 }
 
 /// Share of the quietest gradients that measures a frame's noise.
@@ -356,6 +358,7 @@ impl HorizonDetector {
             edge_count: 0,
             working_scale: 1,
             interference: None,
+            coded_tile: None,
         }
     }
 
@@ -386,6 +389,14 @@ impl HorizonDetector {
     /// its working image, if one was found.
     pub fn last_interference_period(&self) -> Option<f32> {
         self.interference
+    }
+
+    /// Side (frame pixels) of the codec's blocks the last frame was found coded in: 8, or 16
+    /// for a frame coded at half resolution (its edges are read smoothed over the tiles, see
+    /// `blocks::smooth_tiles`). `None`: not found coded, or wider than 400 pixels (not looked
+    /// for).
+    pub fn last_coded_tile(&self) -> Option<usize> {
+        self.coded_tile
     }
 
     /// Forgets the tracked horizon (e.g. after a cut in the video).
@@ -419,6 +430,7 @@ impl HorizonDetector {
         ws: &mut Workspace<'_>,
     ) -> Result<Horizon, Outcome> {
         let (width, height) = (frame.width(), frame.height());
+        self.coded_tile = None;
         let camera = self.camera.scaled_to(width as u32, height as u32);
         if !camera.is_valid() {
             return Err(Outcome::BadCamera);
@@ -444,13 +456,28 @@ impl HorizonDetector {
             .then(|| blocks::grid(frame));
         let coded = frame_grid
             .filter(|g| g.contrast >= CODED_IN_BLOCKS && g.weaker_axis >= CODED_ON_BOTH_AXES);
+        // A frame coded at half resolution is read for edges smoothed over its tiles (see
+        // `blocks::smooth_tiles`), and for everything else deblocked like any coded frame: the
+        // smoothing would take the ground's texture, which tells it from the sky.
+        let tiled = coded.filter(|g| g.tile > blocks::BLOCK);
+        self.coded_tile = coded.map(|g| g.tile);
         let working_image = |geo: Working, grey: &mut [u8]| {
             edges::build_working_image(frame, geo, grey);
             if let Some(grid) = coded {
                 blocks::deblock(grey, geo, grid);
             }
         };
-        if let Some(grid) = coded {
+        // The image the edge points are read from.
+        let edge_image = |geo: Working, grey: &mut [u8]| match tiled {
+            Some(grid) => {
+                edges::build_working_image(frame, geo, grey);
+                blocks::smooth_tiles(grey, geo, grid.tile);
+            }
+            None => working_image(geo, grey),
+        };
+        if let Some(grid) = tiled {
+            blocks::smooth_tiles(ws.grey, base, grid.tile);
+        } else if let Some(grid) = coded {
             blocks::deblock(ws.grey, base, grid);
         }
         let mut histogram = edges::GradientHistogram::measure(ws.grey, base, ws.rows);
@@ -472,7 +499,7 @@ impl HorizonDetector {
             if coarser.width >= MIN_WORKING_WIDTH && coarser.height >= MIN_WORKING_WIDTH / 2 {
                 geo = coarser;
                 laplacian = None;
-                working_image(geo, ws.grey);
+                edge_image(geo, ws.grey);
                 histogram = edges::GradientHistogram::measure(ws.grey, geo, ws.rows);
             }
         }
@@ -535,6 +562,13 @@ impl HorizonDetector {
             floor,
         );
         let edge_stats = edges::collect_edges(ws.grey, geo, ws.rows, threshold, &camera, ws.edges);
+        if tiled.is_some() {
+            // Back to the deblocked frame for the regions, profiles and textures.
+            working_image(geo, ws.grey);
+            if let Some(pattern) = pattern {
+                interference::remove(ws.grey, geo, pattern, ws.spectrum);
+            }
+        }
         let edge_points = ws.edges.get(..edge_stats.count).unwrap_or(&[]);
         self.edge_count = edge_points.len();
         if edge_points.len() < MIN_EDGES {

@@ -793,6 +793,74 @@ fn no_horizon_in_fog_or_out_of_the_frame() {
     }
 }
 
+/// `grey` (w × h) as a block codec at half resolution and its lowest quality leaves it: 2×2
+/// means, each 8×8 block of those reduced to its mean quantised to `step` levels (the DC term
+/// alone), then scaled back up bilinearly (OpenCV's `INTER_LINEAR` sample positions).
+fn coded_at_half_resolution(grey: &[u8], w: usize, h: usize, step: f32) -> Vec<u8> {
+    let (hw, hh) = (w / 2, h / 2);
+    let mut half = vec![0.0f32; hw * hh];
+    for y in 0..hh {
+        for x in 0..hw {
+            let at = |dx: usize, dy: usize| f32::from(grey[(2 * y + dy) * w + 2 * x + dx]);
+            half[y * hw + x] = (at(0, 0) + at(1, 0) + at(0, 1) + at(1, 1)) / 4.0;
+        }
+    }
+    let mut coded = vec![0.0f32; hw * hh];
+    for by in (0..hh).step_by(8) {
+        for bx in (0..hw).step_by(8) {
+            let cells =
+                || (by..(by + 8).min(hh)).flat_map(|y| (bx..(bx + 8).min(hw)).map(move |x| (x, y)));
+            let n = cells().count() as f32;
+            let mean = cells().map(|(x, y)| half[y * hw + x]).sum::<f32>() / n;
+            let level = (mean / step).round() * step;
+            for (x, y) in cells() {
+                coded[y * hw + x] = level;
+            }
+        }
+    }
+    let mut out = vec![0u8; w * h];
+    for v in 0..h {
+        for u in 0..w {
+            let sx = ((u as f32 + 0.5) / 2.0 - 0.5).clamp(0.0, (hw - 1) as f32);
+            let sy = ((v as f32 + 0.5) / 2.0 - 0.5).clamp(0.0, (hh - 1) as f32);
+            let (x0, y0) = (sx as usize, sy as usize);
+            let (x1, y1) = ((x0 + 1).min(hw - 1), (y0 + 1).min(hh - 1));
+            let (fx, fy) = (sx - x0 as f32, sy - y0 as f32);
+            let top = coded[y0 * hw + x0] * (1.0 - fx) + coded[y0 * hw + x1] * fx;
+            let bottom = coded[y1 * hw + x0] * (1.0 - fx) + coded[y1 * hw + x1] * fx;
+            out[v * w + u] = (top * (1.0 - fy) + bottom * fy).round().clamp(0.0, 255.0) as u8;
+        }
+    }
+    out
+}
+
+#[test]
+fn a_horizon_coded_at_half_resolution_is_read_through_its_tiles() {
+    // At a video link's lowest quality and half resolution, a frame is 16-pixel tiles of flat
+    // luma (aerial's `transmission` class: libjpeg at quality 4–22, half the links at half
+    // resolution). A tilted horizon through them is a staircase of level treads, which vote
+    // for level lines only: the detector read the level border of a row of tiles (roll 0,
+    // the pitch of a tile row). Smoothed over a tile for the edge pass
+    // (`blocks::smooth_tiles`), the treads become a ramp along the horizon. Without the
+    // smoothing the four were read at rolls 6.0, 0.0, 0.05 and 0.0. The ground is hazy, as
+    // the chain's frames are: over a sharp step onto flat ground the placement walks to the
+    // top of the tiles' ramp, 1–2° into the sky (docs/horizon.md).
+    let camera = camera_320();
+    for &(roll, pitch) in &[(9.0, 2.0), (-14.0, -3.0), (21.0, 5.0), (-6.0, 0.5)] {
+        let haze = hazy(185.0, 160.0, 90.0, 0.03);
+        let grey = render_grey(&camera, roll * DEG, pitch * DEG, |u, v, d| {
+            let texture = if d > 0.0 {
+                20.0 * (hash((u / 9.0) as i64, (v / 6.0) as i64, 5) - 0.5)
+            } else {
+                0.0
+            };
+            haze(u, v, d) + texture
+        });
+        let coded = coded_at_half_resolution(&grey, 320, 240, 8.0);
+        assert_attitude(detect_once(camera, Pixels::Grey(&coded)), roll, pitch, 2.0);
+    }
+}
+
 #[test]
 fn sinusoidal_interference_across_the_horizon() {
     // Analog interference: a sinusoid of amplitude 30 (the horizon's step is 70) at angles

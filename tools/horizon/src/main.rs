@@ -170,8 +170,13 @@ fn run_detect(
                 .last_interference_period()
                 .map(|p| format!(", a periodic pattern of {p:.1} working px notched out"))
                 .unwrap_or_default();
+            let coded = runner
+                .detector
+                .last_coded_tile()
+                .map(|t| format!(", coded in {t}-px blocks"))
+                .unwrap_or_default();
             eprintln!(
-                "frame {index}: {:?}, {} edge points, working image binned {}x{pattern}",
+                "frame {index}: {:?}, {} edge points, working image binned {}x{pattern}{coded}",
                 runner.detector.last_outcome(),
                 runner.detector.last_edge_count(),
                 runner.detector.last_working_scale()

@@ -175,11 +175,16 @@ fn a_sea_seen_from_above_through_the_chain_is_not_trusted_as_a_sky() {
 
 /// Runs the chain on `input` with `stages`; its exit code and standard error.
 fn chain(input: &Path, stages: &str) -> (Option<i32>, String) {
+    chain_with(input, &["--stages", stages])
+}
+
+/// Runs the chain on `input` with `args`; its exit code and standard error.
+fn chain_with(input: &Path, args: &[&str]) -> (Option<i32>, String) {
     let out = Command::new(python())
         .arg(script())
         .arg(input)
         .arg(input.join("out"))
-        .args(["--stages", stages])
+        .args(args)
         .output()
         .expect("runs python");
     (
@@ -199,12 +204,17 @@ fn the_chain_says_in_one_line_why_it_refuses() {
     let no_frames = chain(&dir, "bayer");
     let unknown_stage = chain(&dir, "bayer,fog");
     let two_analogue_links = chain(&dir, "analogue,interference");
+    let backwards_quality = chain_with(&dir, &["--stages", "jpeg", "--jpeg-quality", "30,4"]);
     let _ = std::fs::remove_dir_all(&dir);
     for ((code, stderr), says) in [
         (not_a_set, "camera.toml: missing"),
         (no_frames, "no frame_NNNNNN.png frames"),
         (unknown_stage, "unknown stage 'fog'"),
         (two_analogue_links, "analogue and interference are one link"),
+        (
+            backwards_quality,
+            "--jpeg-quality '30,4': want LOWEST,HIGHEST",
+        ),
     ] {
         assert_eq!(code, Some(1), "{stderr}");
         assert_eq!(stderr.lines().count(), 1, "{stderr}");
