@@ -18,6 +18,7 @@ Exit codes: 0 pooled, 2 a report could not be read (the file and why, on one lin
 
 import argparse
 import json
+import signal
 import statistics
 import sys
 
@@ -140,6 +141,8 @@ def as_markdown(pooled):
 
 
 def main():
+    # Piped into `head`: stop quietly, as the shell's own tools do.
+    signal.signal(signal.SIGPIPE, signal.SIG_DFL)
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("reports", nargs="+", help="bench --json reports, one per seed")
     p.add_argument("--json", action="store_true", help="print JSON instead of Markdown")
