@@ -130,7 +130,7 @@ fn contrast_of<'a, I: Iterator<Item = u8>>(
 /// How many times more a half-resolution frame's block borders step than the columns half a
 /// tile from them (see [`Grid::tile`]). Over the `synth` and `terrain` tuning sets at 320×240
 /// through `camera_chain.py --jpeg-quality 4,22` (a numpy model of this measure, on the
-/// frames whose grid contrast reaches `CODED_IN_BLOCKS`): at half resolution 3.6 for the 1st
+/// frames whose grid contrast across columns reaches 2.7): at half resolution 3.6 for the 1st
 /// percentile of 2627 frames, 11 the median; at full resolution 1.5 for the 99th of 3755;
 /// the H.264 link's frames (16-pixel macroblocks, 4×4 and 8×8 transforms) 1.1–3.5.
 const HALF_RESOLUTION_CONTRAST: f32 = 3.0;

@@ -2,7 +2,9 @@
 //!
 //! Pipeline (each stage answers one of the seed's failures, thesis §6.2.3):
 //! 1. working image: luma, binned for frames wider than 400 px ([`edges`]); an analogue
-//!    link's periodic pattern found in its spectrum and notched out ([`interference`]);
+//!    link's periodic pattern found in its spectrum and notched out ([`interference`]); a
+//!    coded frame deblocked, or for its edges smoothed over its tiles when it was coded at
+//!    half resolution ([`blocks`]);
 //! 2. 3×3 Sobel gradient, threshold adapted to the frame's gradient distribution, thinned by
 //!    non-maximum suppression, edge points as a list;
 //! 3. radial distortion correction of the points only (conventions camera model);
