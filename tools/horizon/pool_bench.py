@@ -31,6 +31,12 @@ def fail(message):
     sys.exit(2)
 
 
+def why(e):
+    """An exception in a few words (a decoding error's repr holds the whole file)."""
+    text = f"{type(e).__name__}: {e}"
+    return text if len(text) <= 160 else text[:157] + "..."
+
+
 def load(path):
     try:
         with open(path, encoding="utf-8") as f:
@@ -38,7 +44,7 @@ def load(path):
         sets = [a for a in report["accuracy"] if a["generator"] == "real"]
         speed = report.get("speed", [])
     except (OSError, ValueError, KeyError, TypeError) as e:
-        fail(f"{path}: not a bench --json report ({e!r})")
+        fail(f"{path}: not a bench --json report ({why(e)})")
     return sets, speed
 
 
@@ -46,40 +52,44 @@ def pool(paths):
     rows, speed = {}, {}
     for path in paths:
         sets, seed_speed = load(path)
-        for entry in sets:
-            try:
-                ours = entry["ours"]["accuracy"]
-                opencv = (entry.get("opencv") or {}).get("accuracy")
-                name, frames, visible = entry["set"], ours["frames"], ours["visible"]
-                within = {k: ours[f"within_{k}deg"] for k in (1, 2, 5)}
-                false_rate = ours["false_confident_rate"]
-            except (KeyError, TypeError) as e:
-                fail(f"{path}: a set without {e}")
-            r = rows.setdefault(
-                name,
-                dict(frames=0, visible=0, within={1: 0, 2: 0, 5: 0}, false=0, cv_within=0,
-                     cv_false=0, cv=opencv is not None, seeds=0, seeds_at_target=0,
-                     seeds_below_opencv=0),
-            )
-            r["frames"] += frames
-            r["visible"] += visible
-            r["false"] += round(false_rate * frames)
-            for k, share in within.items():
-                r["within"][k] += round((share or 0.0) * visible)
-            r["cv"] = r["cv"] and opencv is not None
-            if opencv is not None:
-                r["cv_within"] += round((opencv["within_2deg"] or 0.0) * opencv["visible"])
-                r["cv_false"] += round(opencv["false_confident_rate"] * opencv["frames"])
-            if visible:
-                r["seeds"] += 1
-                r["seeds_at_target"] += (within[2] or 0.0) >= TARGET - 1e-9
-                if opencv is not None:
-                    r["seeds_below_opencv"] += (within[2] or 0.0) < (
-                        opencv["within_2deg"] or 0.0) - 1e-9
-        for s in seed_speed:
-            if s.get("speedup_mean") is not None:
-                speed.setdefault(s["size"], []).append(s["speedup_mean"])
+        try:
+            for entry in sets:
+                add_set(rows, entry)
+            for s in seed_speed:
+                if s.get("speedup_mean") is not None:
+                    speed.setdefault(str(s["size"]), []).append(float(s["speedup_mean"]))
+        except (KeyError, TypeError, ValueError, AttributeError, OverflowError) as e:
+            fail(f"{path}: a set or speed entry that is not a bench report's ({why(e)})")
     return rows, speed
+
+
+def add_set(rows, entry):
+    """Adds one `--real` set of a report to `rows` (its counts are the shares times frames)."""
+    ours = entry["ours"]["accuracy"]
+    opencv = (entry.get("opencv") or {}).get("accuracy")
+    name, frames, visible = str(entry["set"]), int(ours["frames"]), int(ours["visible"])
+    within = {k: float(ours[f"within_{k}deg"] or 0.0) for k in (1, 2, 5)}
+    r = rows.setdefault(
+        name,
+        dict(frames=0, visible=0, within={1: 0, 2: 0, 5: 0}, false=0, cv_within=0,
+             cv_false=0, cv=opencv is not None, seeds=0, seeds_at_target=0,
+             seeds_below_opencv=0),
+    )
+    r["frames"] += frames
+    r["visible"] += visible
+    r["false"] += round(float(ours["false_confident_rate"]) * frames)
+    for k, share_ in within.items():
+        r["within"][k] += round(share_ * visible)
+    r["cv"] = r["cv"] and opencv is not None
+    cv_within = float(opencv["within_2deg"] or 0.0) if opencv is not None else 0.0
+    if opencv is not None:
+        r["cv_within"] += round(cv_within * int(opencv["visible"]))
+        r["cv_false"] += round(float(opencv["false_confident_rate"]) * int(opencv["frames"]))
+    if visible:
+        r["seeds"] += 1
+        r["seeds_at_target"] += within[2] >= TARGET - 1e-9
+        if opencv is not None:
+            r["seeds_below_opencv"] += within[2] < cv_within - 1e-9
 
 
 def share(count, of):

@@ -115,5 +115,68 @@ fn pool_twice(dir: &std::path::Path, set: &std::path::Path) -> serde_json::Value
         stderr.lines().count() == 1 && stderr.contains("truth-not-report.json"),
         "{stderr}"
     );
+
+    let fuzzed = dir.join("fuzzed.json");
+    // Fuzzed: the real report with values replaced, keys dropped, bytes cut or flipped. Each
+    // is pooled in one Python process; each must be pooled or refused (exit 2), never raise.
+    let out = Command::new(python())
+        .arg("-c")
+        .arg(FUZZ_POOL)
+        .arg(&pool)
+        .arg(&report)
+        .arg(&fuzzed)
+        .output()
+        .expect("runs python");
+    // Each refusal is one short line of its own: the file, and why in a few words.
+    let refusals = String::from_utf8_lossy(&out.stderr).into_owned();
+    let stdout = succeeded(out);
+    assert!(stdout.contains("400 fuzzed reports, 0 raised"), "{stdout}");
+    assert!(
+        refusals
+            .lines()
+            .all(|l| l.starts_with("pool_bench: ") && l.len() <= 220 + fuzzed.as_os_str().len()),
+        "{refusals}"
+    );
     pooled
 }
+
+/// The fuzzing of `pool_bench.py` (arguments: the script, a real report, a scratch file).
+const FUZZ_POOL: &str = r#"
+import importlib.util, json, random, sys
+spec = importlib.util.spec_from_file_location("pool_bench", sys.argv[1])
+pb = importlib.util.module_from_spec(spec); spec.loader.exec_module(pb)
+text = open(sys.argv[2], "rb").read(); scratch = sys.argv[3]; rng = random.Random(7)
+odd = [None, True, -1, 1e309, "x", [], {}, [1, 2], {"a": 1}, 3.5, "", 0]
+def nodes(v, out):
+    if isinstance(v, dict):
+        for k in list(v): out.append((v, k)); nodes(v[k], out)
+    elif isinstance(v, list):
+        for i in range(len(v)): out.append((v, i)); nodes(v[i], out)
+    return out
+raised = 0
+for n in range(400):
+    if n % 4 == 3:
+        b = bytearray(text)
+        for _ in range(rng.randint(1, 8)):
+            b[rng.randrange(len(b))] = rng.randrange(256)
+        data = bytes(b[: rng.randrange(len(b) + 1)]) if n % 8 == 7 else bytes(b)
+    else:
+        doc = json.loads(text)
+        for _ in range(rng.randint(1, 4)):
+            parent, key = rng.choice(nodes(doc, []))
+            if rng.random() < 0.3 and isinstance(parent, dict):
+                del parent[key]
+            else:
+                parent[key] = rng.choice(odd)
+        data = json.dumps(doc).encode()
+    open(scratch, "wb").write(data)
+    try:
+        rows, speed = pb.pool([scratch])
+        pb.as_markdown(pb.as_json(rows, speed, 1))
+    except SystemExit as e:
+        if e.code != 2:
+            raised += 1; print("exit", e.code, file=sys.stderr)
+    except Exception as e:
+        raised += 1; print(repr(e), file=sys.stderr)
+print(f"400 fuzzed reports, {raised} raised")
+"#;
