@@ -463,25 +463,23 @@ impl HorizonDetector {
         // smoothing would take the ground's texture, which tells it from the sky.
         let tiled = coded.filter(|g| g.tile > blocks::BLOCK);
         self.coded_tile = coded.map(|g| g.tile);
+        // What a built working image of a coded frame gets: deblocking, or, for the edge
+        // pass of a frame coded at half resolution, smoothing over its tiles.
+        let unblock = |geo: Working, grey: &mut [u8], for_edges: bool| match (tiled, coded) {
+            (Some(grid), _) if for_edges => blocks::smooth_tiles(grey, geo, grid.tile),
+            (_, Some(grid)) => blocks::deblock(grey, geo, grid),
+            _ => {}
+        };
         let working_image = |geo: Working, grey: &mut [u8]| {
             edges::build_working_image(frame, geo, grey);
-            if let Some(grid) = coded {
-                blocks::deblock(grey, geo, grid);
-            }
+            unblock(geo, grey, false);
         };
         // The image the edge points are read from.
-        let edge_image = |geo: Working, grey: &mut [u8]| match tiled {
-            Some(grid) => {
-                edges::build_working_image(frame, geo, grey);
-                blocks::smooth_tiles(grey, geo, grid.tile);
-            }
-            None => working_image(geo, grey),
+        let edge_image = |geo: Working, grey: &mut [u8]| {
+            edges::build_working_image(frame, geo, grey);
+            unblock(geo, grey, true);
         };
-        if let Some(grid) = tiled {
-            blocks::smooth_tiles(ws.grey, base, grid.tile);
-        } else if let Some(grid) = coded {
-            blocks::deblock(ws.grey, base, grid);
-        }
+        unblock(base, ws.grey, true);
         let mut histogram = edges::GradientHistogram::measure(ws.grey, base, ws.rows);
         // Only a level above `noise_per_binning` bins further; below it the cap cannot matter.
         // The working image's Laplacian, once measured: when the frame is not binned further,
