@@ -754,6 +754,24 @@ impl HorizonDetector {
         let mut chosen = chosen;
         let sky_brighter = chosen.sky_brighter();
         let mut climbed = false;
+        // A candidate drawn along the whole frame above the chosen one (a sea's horizon over
+        // the shore, the top of a haze band over the ground's edge) is the horizon: a ground
+        // edge lies below it (see [`drawn_line_above`]). Not where a link's stripes draw
+        // lines of their own: a white stripe's edge (`synth` `white-stripes`), and under
+        // interference the crests' compromise lines (`terrain` `interference`, 4 of 40
+        // frames lost at 640 px when it ran there too).
+        let mut overtaken = None;
+        if !from_region
+            && self.interference.is_none()
+            && stripe_family(&scored, rho.step).is_none()
+            && let Some(upper) = drawn_line_above(&context, &scored, &chosen, |s| {
+                not_a_bar(s) && !sync_bar::along_saturated_bar(ws.grey, geo, &camera, s.line)
+            })
+        {
+            overtaken = Some(chosen.line);
+            chosen = self.tracked(upper);
+            climbed = true;
+        }
         for _ in 0..if from_region { 0 } else { 2 } {
             match higher_edge(
                 &context,
@@ -1022,6 +1040,7 @@ impl HorizonDetector {
             (climbed
                 && libm::fabsf(wrap_angle(s.line.angle - chosen.line.angle)) < 3.0 * PI / 180.0)
                 || turned_from.is_some_and(|edge| same_line(s.line, edge, rho.step))
+                || overtaken.is_some_and(|edge| same_line(s.line, edge, rho.step))
         };
         let rival = scored
             .iter()
@@ -1335,6 +1354,41 @@ fn higher_edge(
         return None;
     }
     Some(Scored::new(line, sky_brighter, separation, coverage))
+}
+
+/// Least coverage of a candidate taken over the chosen line by [`drawn_line_above`]: drawn
+/// along nearly its whole length, as a horizon is and a cloud's edge seldom is.
+const DRAWN_ABOVE_COVERAGE: f32 = 0.8;
+/// ... and least share of the chosen line's explained variance it must explain.
+const DRAWN_ABOVE_EXPLAINED: f32 = 0.4;
+
+/// The best-scored candidate of the chosen line's polarity drawn along nearly its whole
+/// length ([`DRAWN_ABOVE_COVERAGE`]) that lies above the chosen line across the frame and
+/// splits the frame at least [`DRAWN_ABOVE_EXPLAINED`] as well. A shore under a sea's
+/// horizon, or the ground's edge under a haze band, splits the frame better than the horizon
+/// (the sea or the haze is as bright as the sky), and [`higher_edge`] does not climb to it:
+/// the two are degrees out of parallel, and there is no textured ground between them.
+/// `usable` excludes lines the caller does not trust (a blanked or saturated bar's edge).
+fn drawn_line_above(
+    c: &LineContext<'_>,
+    scored: &[Option<Scored>],
+    chosen: &Scored,
+    usable: impl Fn(&Scored) -> bool,
+) -> Option<Scored> {
+    let sky_brighter = chosen.sky_brighter();
+    let sky_ward = if sky_brighter { 1.0 } else { -1.0 };
+    scored
+        .iter()
+        .flatten()
+        .filter(|s| {
+            s.sky_brighter() == sky_brighter
+                && s.coverage >= DRAWN_ABOVE_COVERAGE
+                && s.explained >= DRAWN_ABOVE_EXPLAINED * chosen.explained
+                && above_across_the_frame(c, chosen.line, s.line, sky_ward)
+                && usable(s)
+        })
+        .max_by(|a, b| a.score.total_cmp(&b.score))
+        .copied()
 }
 
 /// Whether `candidate` lies on the sky side (`sky_ward`) of `edge`, by at least two rho bins,

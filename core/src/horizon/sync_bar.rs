@@ -26,6 +26,24 @@ const EDGE_REACH: isize = 2;
 /// Whether `line` runs along an edge of a bar of blanked rows, bounded by unblanked rows above
 /// and below within the frame.
 pub(crate) fn along_blank_bar(grey: &[u8], geo: Working, camera: &Camera, line: Line) -> bool {
+    along_bar(grey, geo, camera, line, |p| p <= BLANK)
+}
+
+/// Whether `line` runs along an edge of a bar of saturated rows (a link's white stripe,
+/// `synth` `white-stripes`), bounded as [`along_blank_bar`]'s: no scene gives rows white from
+/// edge to edge with darker rows on both sides of them within an eighth of the frame.
+pub(crate) fn along_saturated_bar(grey: &[u8], geo: Working, camera: &Camera, line: Line) -> bool {
+    along_bar(grey, geo, camera, line, |p| p >= u8::MAX - BLANK)
+}
+
+/// Whether `line` runs along an edge of a bar of rows whose pixels are nearly all `in_bar`.
+fn along_bar(
+    grey: &[u8],
+    geo: Working,
+    camera: &Camera,
+    line: Line,
+    in_bar: impl Fn(u8) -> bool,
+) -> bool {
     let (s, c) = line.normal();
     if libm::fabsf(s) > LEVEL_SINE || libm::fabsf(c) < 0.5 {
         return false;
@@ -38,7 +56,7 @@ pub(crate) fn along_blank_bar(grey: &[u8], geo: Working, camera: &Camera, line: 
         return false;
     }
     let centre = libm::roundf(wy) as isize;
-    let blank = |row: isize| row_is_blank(grey, geo, row);
+    let blank = |row: isize| row_in_bar(grey, geo, row, &in_bar);
     let max_rows = (MAX_BAR_SHARE * geo.height as f32) as isize;
     (centre - EDGE_REACH..=centre + EDGE_REACH).any(|row| {
         // `row` is a bar's first row from above (or from below) when the row before it is
@@ -57,11 +75,11 @@ pub(crate) fn along_blank_bar(grey: &[u8], geo: Working, camera: &Camera, line: 
     })
 }
 
-/// Whether working row `row` is blanked; `None` outside the image.
-fn row_is_blank(grey: &[u8], geo: Working, row: isize) -> Option<bool> {
+/// Whether working row `row` is nearly all `in_bar`; `None` outside the image.
+fn row_in_bar(grey: &[u8], geo: Working, row: isize, in_bar: impl Fn(u8) -> bool) -> Option<bool> {
     let row = usize::try_from(row).ok().filter(|&r| r < geo.height)?;
     let pixels = grey.get(row * geo.width..(row + 1) * geo.width)?;
-    let blanked = pixels.iter().filter(|&&p| p <= BLANK).count();
+    let blanked = pixels.iter().filter(|&&p| in_bar(p)).count();
     Some(blanked as f32 >= BLANK_ROW_SHARE * pixels.len() as f32)
 }
 
@@ -122,6 +140,33 @@ mod tests {
         assert!(!bar_edge_above(bar(), 56));
         // The horizon under the bar is not along it.
         assert!(!bar_edge_above(bar(), 90));
+    }
+
+    #[test]
+    fn both_edges_of_a_white_bar_are_along_a_saturated_bar_and_a_clipped_sky_is_none() {
+        let (grey, geo, camera) = image(|r, c| match r {
+            60..68 => (250 + (r * 7 + c * 13) % 6) as u8,
+            0..90 => 180,
+            _ => 120,
+        });
+        let along = |row| along_saturated_bar(&grey, geo, &camera, level_line_above(row, &camera));
+        assert!(along(60) && along(68));
+        assert!(!along(90));
+        // Not a blanked bar.
+        assert!(!along_blank_bar(
+            &grey,
+            geo,
+            &camera,
+            level_line_above(60, &camera)
+        ));
+        // A sky clipped white from the frame's top down to the horizon is no bar.
+        let (grey, geo, camera) = image(|r, _| if r < 60 { 255 } else { 120 });
+        assert!(!along_saturated_bar(
+            &grey,
+            geo,
+            &camera,
+            level_line_above(60, &camera)
+        ));
     }
 
     #[test]

@@ -637,6 +637,41 @@ fn ground_edge_stronger_than_the_horizon() {
 }
 
 #[test]
+fn a_shore_out_of_parallel_under_a_sea_horizon() {
+    // A calm sea (188) under a smooth sky (215), and a shore of dark textured land turned 5°
+    // from the horizon and 7° under it: the shore splits the frame into dark land and bright
+    // sea and sky better than the horizon does, and the two are too far out of parallel, with
+    // no textured ground between them, for the climb to a higher edge.
+    let camera = camera_320();
+    for (roll, pitch, turn) in [
+        (0.0f32, -2.0f32, 5.0f32),
+        (12.0, -4.0, -5.0),
+        (-20.0, 0.0, 5.0),
+    ] {
+        let (shore_roll, shore_pitch) = ((roll + turn) * DEG, (pitch + 7.0) * DEG);
+        let (s, c, o) = (
+            libm::sinf(shore_roll),
+            libm::cosf(shore_roll),
+            libm::tanf(shore_pitch),
+        );
+        let scene = |u: f32, v: f32, d: f32| {
+            let (x, y) = camera.undistort_pixel(u, v).expect("inside the model");
+            let texture = 30.0 * (hash((u / 4.0) as i64, (v / 3.0) as i64, 11) - 0.5);
+            if s * x + c * y - o > 0.0 {
+                75.0 + texture
+            } else if d > 0.0 {
+                188.0 + 0.1 * texture
+            } else {
+                215.0
+            }
+        };
+        let grey = render_grey(&camera, roll * DEG, pitch * DEG, scene);
+        let h = detect_once(camera, Pixels::Grey(&grey));
+        assert_attitude(h, roll, pitch, 1.0);
+    }
+}
+
+#[test]
 fn heavy_sensor_noise() {
     // σ = 30 on a contrast of 70: Hough on Canny edges still holds here, so must we.
     let camera = camera_320();
