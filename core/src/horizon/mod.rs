@@ -756,17 +756,22 @@ impl HorizonDetector {
         let mut climbed = false;
         // A candidate drawn along the whole frame above the chosen one (a sea's horizon over
         // the shore, the top of a haze band over the ground's edge) is the horizon: a ground
-        // edge lies below it (see [`drawn_line_above`]). Not where a link's stripes draw
-        // lines of their own: a white stripe's edge (`synth` `white-stripes`), and under
-        // interference the crests' compromise lines (`terrain` `interference`, 4 of 40
-        // frames lost at 640 px when it ran there too).
+        // edge lies below it (see [`drawn_line_above`]). Not a line a link draws itself: the
+        // edge of a white stripe (`synth` `white-stripes`), of a blanked bar, a family of
+        // stripes, and, where a periodic pattern was notched out, a line level with the rows,
+        // the edge of the link's hum bar (`terrain` `interference`: 4 of 40 frames at 640 px
+        // lost to it while the rule skipped no line under a pattern).
+        let level = |line: Line| libm::fabsf(line.normal().0) <= sync_bar::LEVEL_SINE;
+        let drawn_by_the_link = |s: &Scored| {
+            !not_a_bar(s)
+                || sync_bar::along_saturated_bar(ws.grey, geo, &camera, s.line)
+                || (pattern.is_some() && level(s.line))
+        };
         let mut overtaken = None;
         if !from_region
-            && self.interference.is_none()
             && stripe_family(&scored, rho.step).is_none()
-            && let Some(upper) = drawn_line_above(&context, &scored, &chosen, |s| {
-                not_a_bar(s) && !sync_bar::along_saturated_bar(ws.grey, geo, &camera, s.line)
-            })
+            && let Some(upper) =
+                drawn_line_above(&context, &scored, &chosen, |s| !drawn_by_the_link(s))
         {
             overtaken = Some(chosen.line);
             chosen = self.tracked(upper);
