@@ -102,6 +102,31 @@ fn pool_twice(dir: &std::path::Path, set: &std::path::Path) -> serde_json::Value
         .expect("runs python");
     let pooled = serde_json::from_str(&succeeded(out)).expect("JSON");
 
+    // Speed is pooled by the target's measure, each seed's ratio of median frame times, with
+    // the ratio of means beside it: two seeds, one under 2× by medians and over it by means.
+    let mut timed: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).expect("reads")).expect("JSON");
+    let seeds = [(1.5, 2.5), (2.2, 2.1)].map(|(median, mean)| {
+        timed["speed"] = serde_json::json!([{"size": "320x240", "frames": 40,
+            "ours_ms_mean": 1.0, "ours_ms_median": 1.0, "opencv_ms_mean": mean,
+            "opencv_ms_median": median, "speedup_mean": mean, "speedup_median": median}]);
+        let path = dir.join(format!("timed-{median}.json"));
+        std::fs::write(&path, timed.to_string()).expect("writes");
+        path
+    });
+    let out = Command::new(python())
+        .arg(&pool)
+        .args(&seeds)
+        .arg("--json")
+        .output()
+        .expect("runs python");
+    let speed: serde_json::Value = serde_json::from_str(&succeeded(out)).expect("JSON");
+    let speed = &speed["speed"][0];
+    assert_eq!(speed["speedup_lowest"], 1.5, "{speed}");
+    assert_eq!(speed["seeds_under_2x"], 1, "{speed}");
+    assert_eq!(speed["speedup_of_means_lowest"], 2.1, "{speed}");
+    assert_eq!(speed["seeds_under_2x_by_means"], 0, "{speed}");
+
     let not_a_report = dir.join("truth-not-report.json");
     std::fs::write(&not_a_report, "{\"accuracy\": 3}").expect("writes");
     let out = Command::new(python())
