@@ -1373,7 +1373,7 @@ const DRAWN_ABOVE_EXPLAINED: f32 = 0.4;
 /// horizon, or the ground's edge under a haze band, splits the frame better than the horizon
 /// (the sea or the haze is as bright as the sky), and [`higher_edge`] does not climb to it:
 /// the two are degrees out of parallel, and there is no textured ground between them.
-/// `usable` excludes lines the caller does not trust (a blanked or saturated bar's edge).
+/// `usable` excludes the lines the caller knows a link drew (a bar's edge, a hum bar's).
 fn drawn_line_above(
     c: &LineContext<'_>,
     scored: &[Option<Scored>],
