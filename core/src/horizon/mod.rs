@@ -761,15 +761,17 @@ impl HorizonDetector {
         // stripes, and, where a periodic pattern was notched out, a line level with the rows,
         // the edge of the link's hum bar (`terrain` `interference`: 7 frames lost to it, 3 of
         // 40 on seed 16 at 640 px, while the rule skipped no line under a pattern).
-        let level = |line: Line| libm::fabsf(line.normal().0) <= sync_bar::LEVEL_SINE;
         let drawn_by_the_link = |s: &Scored| {
             !not_a_bar(s)
                 || sync_bar::along_saturated_bar(ws.grey, geo, &camera, s.line)
-                || (pattern.is_some() && level(s.line))
+                || (pattern.is_some() && sync_bar::is_level(s.line))
         };
+        // The candidates no longer change: their family of stripes, if any, is read once, here
+        // and in 7c.
+        let family = stripe_family(&scored, rho.step);
         let mut overtaken = None;
         if !from_region
-            && stripe_family(&scored, rho.step).is_none()
+            && family.is_none()
             && let Some(upper) =
                 drawn_line_above(&context, &scored, &chosen, |s| !drawn_by_the_link(s))
         {
@@ -924,7 +926,7 @@ impl HorizonDetector {
         let crest = if striped {
             Some(chosen.line)
         } else if !climbed && chosen.score < FAMILY_WEAK_SCORE {
-            stripe_family(&scored, rho.step)
+            family
         } else {
             None
         };

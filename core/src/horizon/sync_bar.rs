@@ -36,6 +36,11 @@ pub(crate) fn along_saturated_bar(grey: &[u8], geo: Working, camera: &Camera, li
     along_bar(grey, geo, camera, line, |p| p >= u8::MAX - BLANK)
 }
 
+/// Whether `line` is level with the frame's rows (within [`LEVEL_SINE`]), as a bar's edge is.
+pub(crate) fn is_level(line: Line) -> bool {
+    libm::fabsf(line.normal().0) <= LEVEL_SINE
+}
+
 /// Whether `line` runs along an edge of a bar of rows whose pixels are nearly all `in_bar`.
 fn along_bar(
     grey: &[u8],
@@ -44,8 +49,8 @@ fn along_bar(
     line: Line,
     in_bar: impl Fn(u8) -> bool,
 ) -> bool {
-    let (s, c) = line.normal();
-    if libm::fabsf(s) > LEVEL_SINE || libm::fabsf(c) < 0.5 {
+    let (_, c) = line.normal();
+    if !is_level(line) || libm::fabsf(c) < 0.5 {
         return false;
     }
     // The frame row the line crosses at the principal point's column, in working rows.

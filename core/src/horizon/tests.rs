@@ -419,7 +419,7 @@ fn render_grey(
     pitch: f32,
     luma: impl Fn(f32, f32, f32) -> f32,
 ) -> Vec<u8> {
-    let (s, c, o) = (libm::sinf(roll), libm::cosf(roll), libm::tanf(pitch));
+    let below = line_side(*camera, roll, pitch);
     let (w, h) = (camera.width as usize, camera.height as usize);
     let mut out = vec![0u8; w * h];
     for v in 0..h {
@@ -429,14 +429,23 @@ fn render_grey(
                 for sx in 0..4 {
                     let pu = u as f32 - 0.375 + 0.25 * sx as f32;
                     let pv = v as f32 - 0.375 + 0.25 * sy as f32;
-                    let (x, y) = camera.undistort_pixel(pu, pv).expect("inside the model");
-                    sum += luma(pu, pv, s * x + c * y - o);
+                    sum += luma(pu, pv, below(pu, pv));
                 }
             }
             out[v * w + u] = (sum / 16.0).round().clamp(0.0, 255.0) as u8;
         }
     }
     out
+}
+
+/// The signed distance (normalised, positive on its ground side) of pixel `(u, v)` from the
+/// line at `roll`, `pitch` (radians): a second line in a scene, such as a shore.
+fn line_side(camera: Camera, roll: f32, pitch: f32) -> impl Fn(f32, f32) -> f32 {
+    let (s, c, o) = (libm::sinf(roll), libm::cosf(roll), libm::tanf(pitch));
+    move |u, v| {
+        let (x, y) = camera.undistort_pixel(u, v).expect("inside the model");
+        s * x + c * y - o
+    }
 }
 
 /// Adds approximately Gaussian noise of standard deviation `sigma`.
@@ -648,16 +657,10 @@ fn a_shore_out_of_parallel_under_a_sea_horizon() {
         (12.0, -4.0, -5.0),
         (-20.0, 0.0, 5.0),
     ] {
-        let (shore_roll, shore_pitch) = ((roll + turn) * DEG, (pitch + 7.0) * DEG);
-        let (s, c, o) = (
-            libm::sinf(shore_roll),
-            libm::cosf(shore_roll),
-            libm::tanf(shore_pitch),
-        );
+        let shore = line_side(camera, (roll + turn) * DEG, (pitch + 7.0) * DEG);
         let scene = |u: f32, v: f32, d: f32| {
-            let (x, y) = camera.undistort_pixel(u, v).expect("inside the model");
             let texture = 30.0 * (hash((u / 4.0) as i64, (v / 3.0) as i64, 11) - 0.5);
-            if s * x + c * y - o > 0.0 {
+            if shore(u, v) > 0.0 {
                 75.0 + texture
             } else if d > 0.0 {
                 188.0 + 0.1 * texture
@@ -1284,15 +1287,12 @@ fn render_rgb(
     pitch: f32,
     colour: impl Fn(f32, f32, f32) -> [f32; 3],
 ) -> Vec<u8> {
-    let (s, c, o) = (libm::sinf(roll), libm::cosf(roll), libm::tanf(pitch));
+    let below = line_side(*camera, roll, pitch);
     let (w, h) = (camera.width as usize, camera.height as usize);
     let mut out = vec![0u8; w * h * 3];
     for v in 0..h {
         for u in 0..w {
-            let (x, y) = camera
-                .undistort_pixel(u as f32, v as f32)
-                .expect("inside the model");
-            let rgb = colour(u as f32, v as f32, s * x + c * y - o);
+            let rgb = colour(u as f32, v as f32, below(u as f32, v as f32));
             for (k, value) in rgb.iter().enumerate() {
                 out[(v * w + u) * 3 + k] = value.round().clamp(0.0, 255.0) as u8;
             }
@@ -1635,16 +1635,10 @@ fn a_shore_under_a_calm_sea_is_not_the_horizon() {
         (-20.0, -3.0, -12.0, 10.0),
         (5.0, 6.0, 18.0, 13.0),
     ] {
-        let (shore_roll, shore_pitch) = ((roll + turn) * DEG, (pitch + below) * DEG);
-        let (ss, sc, so) = (
-            libm::sinf(shore_roll),
-            libm::cosf(shore_roll),
-            libm::tanf(shore_pitch),
-        );
+        let shore = line_side(camera, (roll + turn) * DEG, (pitch + below) * DEG);
         let scene = |u: f32, v: f32, d: f32| {
-            let (x, y) = camera.undistort_pixel(u, v).expect("inside the model");
             let texture = hash((u / 3.0) as i64, (v / 2.0) as i64, 5) - 0.5;
-            if ss * x + sc * y - so > 0.0 {
+            if shore(u, v) > 0.0 {
                 // Fields behind the shore.
                 40.0 + 24.0 * texture
             } else if d > 0.0 {
