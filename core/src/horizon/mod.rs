@@ -323,6 +323,8 @@ pub struct HorizonDetector {
     interference: Option<f32>,
     /// Side (frame pixels) of the coded blocks the last frame was found to be made of.
     coded_tile: Option<usize>,
+    /// The profiles' undistorted knots for the last frame's camera and working image.
+    knots: upper::Knots,
 }
 
 /// Share of the quietest gradients that measures a frame's noise.
@@ -361,6 +363,7 @@ impl HorizonDetector {
             working_scale: 1,
             interference: None,
             coded_tile: None,
+            knots: upper::Knots::new(),
         }
     }
 
@@ -504,6 +507,7 @@ impl HorizonDetector {
             }
         }
         self.working_scale = geo.scale;
+        self.knots.prepare(&camera, geo);
         // 1b: a periodic pattern across the frame (an analogue link's interference) found in
         // the working image's spectrum and notched out of it; the gradient's distribution
         // and the noise are measured again on the image without it.
@@ -743,6 +747,7 @@ impl HorizonDetector {
         // with textured ground between the two and smooth sky above, is the horizon.
         let context = LineContext {
             camera: &camera,
+            knots: &self.knots,
             geo,
             rho,
             edges: edge_points,
@@ -801,7 +806,7 @@ impl HorizonDetector {
             upper::Profile::measure(
                 ws.grey,
                 geo,
-                &camera,
+                (&camera, &self.knots),
                 line,
                 sky_ward,
                 rho.step,
@@ -1028,7 +1033,7 @@ impl HorizonDetector {
             profile = upper::Profile::measure(
                 ws.grey,
                 geo,
-                &camera,
+                (&camera, &self.knots),
                 chosen.line,
                 if sky_brighter { 1.0 } else { -1.0 },
                 rho.step,
@@ -1274,6 +1279,7 @@ impl HorizonDetector {
 /// What scoring a line needs besides the line.
 struct LineContext<'a> {
     camera: &'a Camera,
+    knots: &'a upper::Knots,
     geo: Working,
     rho: RhoAxis,
     edges: &'a [EdgePoint],
@@ -1606,7 +1612,7 @@ fn ridge_over_ramp(
         upper::Profile::measure_above(
             grey,
             c.geo,
-            c.camera,
+            (c.camera, c.knots),
             (line, sky_ward, c.rho.step, reach),
             (chosen.line, RIDGE_FLOOR_MARGIN),
         )

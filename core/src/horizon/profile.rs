@@ -432,8 +432,14 @@ impl<'a> LumaReader<'a> {
 /// `D = s·x + c·y − offset` at a pixel (normalised undistorted units), positive on the ground.
 #[inline]
 fn distance(camera: &Camera, line: &HorizonLine, sc: (f32, f32), u: f32, v: f32) -> Option<f32> {
-    let (x, y) = camera.undistort_pixel(u, v)?;
-    Some(sc.0 * x + sc.1 * y - line.offset)
+    let point = camera.undistort_pixel(u, v)?;
+    Some(distance_at(line, sc, point))
+}
+
+/// [`distance`] at an undistorted point.
+#[inline]
+fn distance_at(line: &HorizonLine, sc: (f32, f32), (x, y): (f32, f32)) -> f32 {
+    sc.0 * x + sc.1 * y - line.offset
 }
 
 /// The two half-profiles across `line` (left and right of the principal point), read from
@@ -512,12 +518,14 @@ fn read_halves(
         // The other component of the gradient of D, for the distance across the line.
         let p = pixel(af, b);
         let q = pixel(af + 1.0, b);
-        let (Some(d_here), Some(d_next)) = (
-            distance(camera, &line, sc, p.0, p.1),
+        // The crossing's own undistorted point is also what the half's mean point adds.
+        let (Some((lx, ly)), Some(d_next)) = (
+            camera.undistort_pixel(p.0, p.1),
             distance(camera, &line, sc, q.0, q.1),
         ) else {
             continue;
         };
+        let d_here = distance_at(&line, sc, (lx, ly));
         let other = d_next - d_here;
         let norm = libm::sqrtf(slope * slope + other * other);
         if norm.is_nan() || norm <= 0.0 {
@@ -542,9 +550,6 @@ fn read_halves(
         if first > last {
             continue;
         }
-        let Some((lx, ly)) = camera.undistort_pixel(p.0, p.1) else {
-            continue;
-        };
         let half = usize::from(af >= centre);
         let Some(profile) = halves.get_mut(half) else {
             continue;
