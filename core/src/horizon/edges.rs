@@ -452,9 +452,6 @@ pub(crate) fn collect_edges(
             sobel_row(grey, geo, y, m, Some((gx, gy)));
         }
     }
-    let mean_focal = 0.5 * (camera.fx + camera.fy);
-    // Tangent step used to carry the gradient direction through the undistortion.
-    let tangent_step = 2.0 * geo.scale as f32 / mean_focal;
     // A zero magnitude is never an edge (a configured threshold of 0 included).
     let threshold = threshold.max(1);
     for y in 1..geo.height.saturating_sub(1) {
@@ -554,7 +551,7 @@ pub(crate) fn collect_edges(
                 };
                 let (u, v) =
                     geo.to_frame(x as f32 + offset * dx as f32, y as f32 + offset * dy as f32);
-                if let Some(point) = undistort_edge(camera, u, v, gx, gy, tangent_step) {
+                if let Some(point) = undistort_edge(camera, u, v, gx, gy) {
                     *slot = point;
                     stats.count += 1;
                 }
@@ -584,16 +581,16 @@ pub(crate) const EDGE_SCRATCH_ROWS: usize = 9;
 const EDGE_BLOCK: usize = 16;
 
 /// Moves one edge pixel and its gradient direction into normalised undistorted coordinates:
-/// the point itself by the inverse radial model, the direction by undistorting a second point
-/// a small step along the edge (radial distortion bends directions away from the centre).
-fn undistort_edge(
-    camera: &Camera,
-    u: f32,
-    v: f32,
-    gx: i32,
-    gy: i32,
-    tangent_step: f32,
-) -> Option<EdgePoint> {
+/// the point itself by the inverse radial model, the direction along the edge by that
+/// model's derivative there (radial distortion bends directions away from the centre).
+///
+/// The distortion `p ↦ p·f(|p|²)`, `f(r²) = 1 + k1·r² + k2·r⁴`, has the Jacobian
+/// `f·I + g·p·pᵀ` with `g = 2·f′(r²)`; its inverse (Sherman–Morrison) takes a distorted tangent
+/// `t` to `(t − p·g·(p·t) / (f + g·r²)) / f`. Only the direction is kept, and `f` is positive
+/// where the point undistorted. Undistorting a second point two working pixels along the edge
+/// instead, as this did before, cost a second inverse model for every edge point (3 % of the
+/// detector's time at 320×240) and read the direction to within 0.1°.
+fn undistort_edge(camera: &Camera, u: f32, v: f32, gx: i32, gy: i32) -> Option<EdgePoint> {
     let xd = (u - camera.cx) / camera.fx;
     let yd = (v - camera.cy) / camera.fy;
     // The intensity gradient with respect to normalised coordinates.
@@ -607,18 +604,22 @@ fn undistort_edge(
     }
     if camera.k1 == 0.0 && camera.k2 == 0.0 {
         // No distortion: the point is where it is and the normal is the gradient's direction
-        // (what the general path below computes with two more undistortions).
+        // (what the general path below computes through the model and its derivative).
         return Some(EdgePoint {
             x: xd,
             y: yd,
             normal_angle: fast_atan2(gnx, gny),
         });
     }
-    let norm = libm::sqrtf(norm2);
-    let (tx, ty) = (-gny / norm, gnx / norm);
+    // The tangent along the edge: the gradient turned by +90°.
+    let (tx, ty) = (-gny, gnx);
     let (x, y) = camera.undistort_normalised(xd, yd)?;
-    let (x2, y2) = camera.undistort_normalised(xd + tx * tangent_step, yd + ty * tangent_step)?;
-    let (tux, tuy) = (x2 - x, y2 - y);
+    let r2 = x * x + y * y;
+    let f = 1.0 + camera.k1 * r2 + camera.k2 * r2 * r2;
+    let g = 2.0 * (camera.k1 + 2.0 * camera.k2 * r2);
+    // `f + g·r²` is the inverse model's Newton slope, which it keeps above zero.
+    let along_p = g * (x * tx + y * ty) / (f + g * r2);
+    let (tux, tuy) = (tx - along_p * x, ty - along_p * y);
     // Normal = tangent turned back by −90°, so it still points towards the brighter side.
     let normal_angle = fast_atan2(tuy, -tux);
     Some(EdgePoint { x, y, normal_angle })
@@ -735,4 +736,68 @@ pub(crate) fn collect_samples(
         }
     }
     count
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The undistorted normal read through the model's derivative, checked against the
+    /// distortion itself: a short step from the undistorted point along the undistorted
+    /// edge lands, once distorted, along the edge in the image (perpendicular to its
+    /// gradient), and the normal still points up the gradient.
+    #[test]
+    fn an_edge_direction_through_the_derivative_is_the_edge_in_the_image() {
+        let mut camera = Camera::ideal(320, 240, 80f32.to_radians());
+        for (k1, k2) in [(-0.3f32, 0.08f32), (0.15, -0.02), (-0.05, 0.0)] {
+            (camera.k1, camera.k2) = (k1, k2);
+            let mut worst = 0.0f32;
+            for (u, v) in [
+                (3.0f32, 4.0f32),
+                (160.0, 120.0),
+                (300.0, 30.0),
+                (40.0, 230.0),
+            ] {
+                for gradient_deg in (0..360).step_by(15) {
+                    let a = (gradient_deg as f32).to_radians();
+                    let (gx, gy) = (
+                        (100.0 * libm::cosf(a)) as i32,
+                        (100.0 * libm::sinf(a)) as i32,
+                    );
+                    let point = undistort_edge(&camera, u, v, gx, gy).expect("inside the model");
+                    // The edge's direction in the undistorted plane: square to the normal
+                    // `(sin, cos)` of the angle, as a Hough line's.
+                    let (nx, ny) = (
+                        libm::sinf(point.normal_angle),
+                        libm::cosf(point.normal_angle),
+                    );
+                    let (ex, ey) = (ny, -nx);
+                    let step = 1e-3;
+                    let (ax, ay) =
+                        camera.distort_normalised(point.x - step * ex, point.y - step * ey);
+                    let (bx, by) =
+                        camera.distort_normalised(point.x + step * ex, point.y + step * ey);
+                    // In pixels: across the image gradient there is no change of level.
+                    let (du, dv) = ((bx - ax) * camera.fx, (by - ay) * camera.fy);
+                    let (gnx, gny) = (gx as f32, gy as f32);
+                    // The angle off square to the gradient.
+                    let cosine =
+                        (du * gnx + dv * gny) / libm::hypotf(du, dv) / libm::hypotf(gnx, gny);
+                    worst = worst.max(libm::fabsf(libm::asinf(cosine.clamp(-1.0, 1.0))));
+                    // The normal is on the brighter side: turning the image gradient into the
+                    // undistorted plane keeps it within 90° of the normal.
+                    let up_the_gradient = camera.undistort_pixel(u + gnx * 0.01, v + gny * 0.01);
+                    let (dx, dy) = up_the_gradient
+                        .map(|(x, y)| (x - point.x, y - point.y))
+                        .expect("inside the model");
+                    assert!(
+                        dx * nx + dy * ny > 0.0,
+                        "normal flipped at ({u}, {v}), {gradient_deg}°"
+                    );
+                }
+            }
+            // Within a hundredth of a degree of the image's edge direction.
+            assert!(worst < 2e-4, "k1 {k1}, k2 {k2}: off by {worst} rad");
+        }
+    }
 }
