@@ -22,6 +22,7 @@ mod blocks;
 mod camera;
 mod edges;
 mod frame;
+mod grid;
 mod hough;
 mod interference;
 mod profile;
@@ -323,8 +324,10 @@ pub struct HorizonDetector {
     interference: Option<f32>,
     /// Side (frame pixels) of the coded blocks the last frame was found to be made of.
     coded_tile: Option<usize>,
-    /// The profiles' undistorted knots for the last frame's camera and working image.
+    /// The profiles' undistorted knots and the samples' undistorted positions, for the last
+    /// frame's camera and working image.
     knots: upper::Knots,
+    sample_points: edges::SamplePoints,
 }
 
 /// Share of the quietest gradients that measures a frame's noise.
@@ -364,6 +367,7 @@ impl HorizonDetector {
             interference: None,
             coded_tile: None,
             knots: upper::Knots::new(),
+            sample_points: edges::SamplePoints::new(),
         }
     }
 
@@ -508,6 +512,7 @@ impl HorizonDetector {
         }
         self.working_scale = geo.scale;
         self.knots.prepare(&camera, geo);
+        self.sample_points.prepare(&camera, geo);
         // 1b: a periodic pattern across the frame (an analogue link's interference) found in
         // the working image's spectrum and notched out of it; the gradient's distribution
         // and the noise are measured again on the image without it.
@@ -639,7 +644,13 @@ impl HorizonDetector {
         // No early return without a candidate: the region search below may still find one.
 
         // 6: refine and validate each candidate.
-        let sample_count = edges::collect_samples(frame, ws.grey, geo, &camera, ws.samples);
+        let sample_count = edges::collect_samples(
+            frame,
+            ws.grey,
+            geo,
+            (&camera, &self.sample_points),
+            ws.samples,
+        );
         let samples = ws.samples.get(..sample_count).unwrap_or(&[]);
         let bands = [3.0 * rho.step, 1.5 * rho.step];
         // Wide: aliased edges (a staircase) have Sobel directions 20° and more off the line; the
@@ -941,7 +952,13 @@ impl HorizonDetector {
             && let Some(wave) = stripes::Wave::estimate(ws.grey, geo, &camera, crest)
         {
             wave.subtract(ws.grey, geo);
-            sample_count = edges::collect_samples(frame, ws.grey, geo, &camera, ws.samples);
+            sample_count = edges::collect_samples(
+                frame,
+                ws.grey,
+                geo,
+                (&camera, &self.sample_points),
+                ws.samples,
+            );
             let clean = ws.samples.get(..sample_count).unwrap_or(&[]);
             let found = region::quick_search(clean, libm::sqrtf(max_radius2))
                 .map(|line| (line, hough::separation(clean, line, 2.0 * rho.step)))
@@ -959,7 +976,13 @@ impl HorizonDetector {
                 if let Some(pattern) = pattern {
                     interference::remove(ws.grey, geo, pattern, ws.spectrum);
                 }
-                sample_count = edges::collect_samples(frame, ws.grey, geo, &camera, ws.samples);
+                sample_count = edges::collect_samples(
+                    frame,
+                    ws.grey,
+                    geo,
+                    (&camera, &self.sample_points),
+                    ws.samples,
+                );
             }
         }
         let samples = ws.samples.get(..sample_count).unwrap_or(&[]);

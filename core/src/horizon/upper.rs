@@ -11,6 +11,7 @@
 
 use super::camera::Camera;
 use super::edges::{MAX_WORKING_WIDTH, Working};
+use super::grid::UndistortedGrid;
 use super::hough::Line;
 
 /// Profile bins, one working pixel (one rho step) each ...
@@ -130,68 +131,48 @@ impl WholeBin {
 }
 
 /// The undistorted positions of [`each_pixel`]'s knots on a distorted camera, kept from frame
-/// to frame. They depend on the camera and the working image alone, not on the frame or the
-/// line, and a frame measures a dozen profiles (a ridge is looked for over 13 turns):
-/// undistorting them again for each took about 7 % of the detector's time at 320×240
-/// (`perf record` over the `aerial` seeds' 320 px sets: 8 % of its samples in the
-/// undistortion, four fifths of them from here). Each is what [`Camera::undistort_pixel`]
-/// gives, to the bit.
+/// to frame (see [`UndistortedGrid`]): a frame measures a dozen profiles (a ridge is looked
+/// for over 13 turns), and undistorting the knots again for each took about 7 % of the
+/// detector's time at 320×240 (`perf record` over the `aerial` seeds' 320 px sets: 8 % of its
+/// samples in the undistortion, four fifths of them from here).
 pub(crate) struct Knots {
-    /// The camera and working image the knots were undistorted for; `None` before the first
-    /// frame, or when the camera has no distortion (nothing to keep).
-    view: Option<(Camera, Working)>,
-    /// `[row / 2][column.div_ceil(KNOT)]`.
-    points: [[Option<(f32, f32)>; KNOT_COLUMNS]; KNOT_ROWS],
+    grid: UndistortedGrid<{ KNOT_COLUMNS * KNOT_ROWS }>,
+    /// The working image's last column, the last knot of a row.
+    last_column: usize,
 }
 
 impl Knots {
     pub(crate) const fn new() -> Self {
         Knots {
-            view: None,
-            points: [[None; KNOT_COLUMNS]; KNOT_ROWS],
+            grid: UndistortedGrid::new(),
+            last_column: 0,
         }
     }
 
-    /// Undistorts the knots for `camera` and `geo`, unless they are already.
+    /// Undistorts the knots for `camera` and `geo`, unless they are already: every
+    /// [`KNOT`]th column and the last, on every other row.
     pub(crate) fn prepare(&mut self, camera: &Camera, geo: Working) {
-        let distorted = camera.k1 != 0.0 || camera.k2 != 0.0;
-        if !distorted {
-            self.view = None;
-            return;
-        }
-        if self.view == Some((*camera, geo)) {
-            return;
-        }
-        for (half_row, row) in self.points.iter_mut().enumerate() {
-            let wy = 2 * half_row;
-            if wy >= geo.height {
-                break;
-            }
-            for (index, point) in row.iter_mut().enumerate() {
-                // The knot columns of `each_pixel`: every KNOT-th, and the last.
-                let wx = (index * KNOT).min(geo.width.saturating_sub(1));
-                let (u, v) = geo.to_frame(wx as f32, wy as f32);
-                *point = camera.undistort_pixel(u, v);
-            }
-        }
-        self.view = Some((*camera, geo));
+        let last = geo.width.saturating_sub(1);
+        self.last_column = last;
+        let columns = (last.div_ceil(KNOT) + 1, |i: usize| (i * KNOT).min(last));
+        let rows = (geo.height.div_ceil(2), |j: usize| 2 * j);
+        self.grid.prepare(camera, geo, columns, rows);
     }
 
-    /// The knot at `(wx, wy)` if it is kept for this camera and working image: `Some` of
-    /// what [`Camera::undistort_pixel`] gives there.
+    /// The knot at `(wx, wy)` if it is kept: `Some` of what [`Camera::undistort_pixel`]
+    /// gives there.
     #[inline]
     fn get(&self, wx: usize, wy: usize) -> Option<Option<(f32, f32)>> {
-        let (_, geo) = self.view?;
         let index = wx.div_ceil(KNOT);
-        if wy % 2 != 0 || (index * KNOT).min(geo.width.saturating_sub(1)) != wx {
+        if wy % 2 != 0 || (index * KNOT).min(self.last_column) != wx {
             return None;
         }
-        self.points.get(wy / 2)?.get(index).copied()
+        self.grid.get(index, wy / 2)
     }
 
     /// These knots if they were undistorted for `camera` and `geo`.
     fn for_view(&self, camera: &Camera, geo: Working) -> Option<&Knots> {
-        (self.view == Some((*camera, geo))).then_some(self)
+        self.grid.for_view(camera, geo).map(|_| self)
     }
 }
 
