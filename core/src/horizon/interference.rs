@@ -251,8 +251,8 @@ pub(crate) fn find(grey: &[u8], geo: Working, scratch: &mut [Complex32]) -> Opti
         fy: (ky as f32 + dy) / ny as f32,
     };
     // On a working image a few rows tall a bin is a wide step of frequency, and half a bin
-    // can carry a spike at the band's edge out of it (found by `any_pixels_are_read_without_a_
-    // fault` on a 220 × 17 image); the bin's own centre, inside the band, is kept then.
+    // can carry a spike at the band's edge out of it (the property test of any pixels found
+    // one on a 220 × 17 image); the bin's own centre, inside the band, is kept then.
     let in_band = (MIN_PERIOD..=MAX_PERIOD).contains(&refined.period());
     Some(if in_band { refined } else { Pattern { fx, fy } })
 }
