@@ -683,8 +683,20 @@ pub(crate) fn sample_step(geo: Working) -> usize {
 }
 
 pub(crate) fn sample_count(geo: Working) -> usize {
+    let (_, columns, rows) = sample_grid(geo);
+    columns * rows
+}
+
+/// The sample grid: its step, columns and rows.
+fn sample_grid(geo: Working) -> (usize, usize, usize) {
     let step = sample_step(geo);
-    (geo.width / step) * (geo.height / step)
+    (step, geo.width / step, geo.height / step)
+}
+
+/// The working pixel (column or row) of the `i`th sample along an axis: the middle of its
+/// step. [`SamplePoints`] keeps the grid [`collect_samples`] reads through this one place.
+fn sample_pixel(step: usize, i: usize) -> usize {
+    i * step + step / 2
 }
 
 /// Most samples whose undistorted positions [`SamplePoints`] keeps: the grid of a working
@@ -704,9 +716,8 @@ impl SamplePoints {
     /// Undistorts the grid [`collect_samples`] reads for `camera` and `geo`, unless it is
     /// already.
     pub(crate) fn prepare(&mut self, camera: &Camera, geo: Working) {
-        let step = sample_step(geo);
-        let at = |i: usize| i * step + step / 2;
-        let (columns, rows) = (geo.width / step, geo.height / step);
+        let (step, columns, rows) = sample_grid(geo);
+        let at = |i: usize| sample_pixel(step, i);
         self.0.prepare(camera, geo, (columns, at), (rows, at));
     }
 }
@@ -719,8 +730,7 @@ pub(crate) fn collect_samples(
     (camera, kept): (&Camera, &SamplePoints),
     samples: &mut [Sample],
 ) -> usize {
-    let step = sample_step(geo);
-    let (cols, rows) = (geo.width / step, geo.height / step);
+    let (step, cols, rows) = sample_grid(geo);
     let kept = kept.0.for_view(camera, geo);
     let colour = matches!(frame.pixels(), Pixels::Rgb(_));
     let pixel = |x: usize, y: usize| -> f32 {
@@ -731,7 +741,7 @@ pub(crate) fn collect_samples(
     let mut count = 0;
     for gy in 0..rows {
         for gx in 0..cols {
-            let (wx, wy) = (gx * step + step / 2, gy * step + step / 2);
+            let (wx, wy) = (sample_pixel(step, gx), sample_pixel(step, gy));
             let undistorted = kept.and_then(|k| k.get(gx, gy)).unwrap_or_else(|| {
                 let (u, v) = geo.to_frame(wx as f32, wy as f32);
                 camera.undistort_pixel(u, v)

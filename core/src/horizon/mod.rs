@@ -644,13 +644,12 @@ impl HorizonDetector {
         // No early return without a candidate: the region search below may still find one.
 
         // 6: refine and validate each candidate.
-        let sample_count = edges::collect_samples(
-            frame,
-            ws.grey,
-            geo,
-            (&camera, &self.sample_points),
-            ws.samples,
-        );
+        // The sky/ground samples of the working image as it is (read again after stripes
+        // are subtracted, and after the image is put back).
+        let read_samples = |grey: &[u8], samples: &mut [Sample]| {
+            edges::collect_samples(frame, grey, geo, (&camera, &self.sample_points), samples)
+        };
+        let sample_count = read_samples(ws.grey, ws.samples);
         let samples = ws.samples.get(..sample_count).unwrap_or(&[]);
         let bands = [3.0 * rho.step, 1.5 * rho.step];
         // Wide: aliased edges (a staircase) have Sobel directions 20° and more off the line; the
@@ -952,13 +951,7 @@ impl HorizonDetector {
             && let Some(wave) = stripes::Wave::estimate(ws.grey, geo, &camera, crest)
         {
             wave.subtract(ws.grey, geo);
-            sample_count = edges::collect_samples(
-                frame,
-                ws.grey,
-                geo,
-                (&camera, &self.sample_points),
-                ws.samples,
-            );
+            sample_count = read_samples(ws.grey, ws.samples);
             let clean = ws.samples.get(..sample_count).unwrap_or(&[]);
             let found = region::quick_search(clean, libm::sqrtf(max_radius2))
                 .map(|line| (line, hough::separation(clean, line, 2.0 * rho.step)))
@@ -976,13 +969,7 @@ impl HorizonDetector {
                 if let Some(pattern) = pattern {
                     interference::remove(ws.grey, geo, pattern, ws.spectrum);
                 }
-                sample_count = edges::collect_samples(
-                    frame,
-                    ws.grey,
-                    geo,
-                    (&camera, &self.sample_points),
-                    ws.samples,
-                );
+                sample_count = read_samples(ws.grey, ws.samples);
             }
         }
         let samples = ws.samples.get(..sample_count).unwrap_or(&[]);
