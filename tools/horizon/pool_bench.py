@@ -123,17 +123,20 @@ def as_json(rows, speed, seeds):
         "sets": sets,
         "speed": [
             {"size": size, "seeds": len(v["median"]),
-             # Per seed: OpenCV's median ms over ours (bench's `speedup_median`).
-             "speedup_lowest": min(v["median"]),
-             "speedup_median": statistics.median(v["median"]),
-             "seeds_under_2x": sum(x < 2 for x in v["median"]),
-             # Per seed: OpenCV's mean ms over ours (bench's `speedup_mean`).
-             "speedup_of_means_lowest": min(v["mean"]),
-             "speedup_of_means_median": statistics.median(v["mean"]),
-             "seeds_under_2x_by_means": sum(x < 2 for x in v["mean"])}
+             # Per seed: OpenCV's median ms over ours (bench's `speedup_median`) ...
+             **over_seeds(v["median"], "speedup_lowest", "speedup_median", "seeds_under_2x"),
+             # ... and OpenCV's mean ms over ours (bench's `speedup_mean`).
+             **over_seeds(v["mean"], "speedup_of_means_lowest", "speedup_of_means_median",
+                          "seeds_under_2x_by_means")}
             for size, v in speed.items()
         ],
     }
+
+
+def over_seeds(ratios, lowest, median, under_2x):
+    """The seeds' speed-ups summed up under the given keys: lowest, median, how many under 2×."""
+    return {lowest: min(ratios), median: statistics.median(ratios),
+            under_2x: sum(x < 2 for x in ratios)}
 
 
 def as_markdown(pooled):
