@@ -337,19 +337,39 @@ pub(crate) struct GradientHistogram {
 
 impl GradientHistogram {
     pub fn measure(grey: &[u8], geo: Working, scratch: &mut [u16]) -> Self {
-        let mut bins = [0u32; 256];
+        // Neighbouring pixels of a smooth sky most often fall in the same bin: they are
+        // counted in two copies of the histogram in turn, so that each count waits on the
+        // one two pixels back, not on the one before.
+        let mut copies = [[0u32; 256]; 2];
         let mut sampled = 0u32;
         let row = scratch.get_mut(..geo.width).unwrap_or(&mut []);
+        let count = |copy: &mut [u32; 256], m: u16| {
+            let bin = ((m >> HISTOGRAM_SHIFT) as usize).min(255);
+            if let Some(h) = copy.get_mut(bin) {
+                *h += 1;
+            }
+        };
         for y in (1..geo.height.saturating_sub(1)).step_by(2) {
             magnitude_row(grey, geo, y, row);
             // Border columns have no gradient; leave them out of the statistics.
-            for &m in row.iter().skip(1).take(geo.width.saturating_sub(2)) {
-                let bin = ((m >> HISTOGRAM_SHIFT) as usize).min(255);
-                if let Some(h) = bins.get_mut(bin) {
-                    *h += 1;
-                }
-                sampled += 1;
+            let inner = row.get(1..geo.width.saturating_sub(1)).unwrap_or(&[]);
+            sampled += inner.len() as u32;
+            let [first, second] = &mut copies;
+            let pairs = inner.chunks_exact(2);
+            if let &[m] = pairs.remainder() {
+                count(first, m);
             }
+            for pair in pairs {
+                if let &[a, b] = pair {
+                    count(first, a);
+                    count(second, b);
+                }
+            }
+        }
+        let [first, second] = copies;
+        let mut bins = first;
+        for (bin, other) in bins.iter_mut().zip(second) {
+            *bin += other;
         }
         GradientHistogram { bins, sampled }
     }

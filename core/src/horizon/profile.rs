@@ -106,7 +106,7 @@ pub(crate) struct Placement {
     pub halves: Halves,
 }
 
-#[derive(Clone, Copy)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 struct Profile {
     sum: [f32; BINS],
     count: [u32; BINS],
@@ -412,19 +412,61 @@ impl<'a> LumaReader<'a> {
         }
     }
 
+    /// The pixels of column `a` (`along_columns`) or of row `a`: where pixel `c` along it
+    /// starts in the data, and how many it has (none where `a` is outside the frame).
+    fn line(&self, along_columns: bool, a: usize) -> LumaLine<'a> {
+        let bytes_per_pixel = if self.colour { 3 } else { 1 };
+        let (inside, base, step, len) = if along_columns {
+            (
+                a < self.width,
+                a * bytes_per_pixel,
+                self.stride,
+                self.height,
+            )
+        } else {
+            (
+                a < self.height,
+                a * self.stride,
+                bytes_per_pixel,
+                self.width,
+            )
+        };
+        LumaLine {
+            data: self.data,
+            base,
+            step,
+            len: if inside { len } else { 0 },
+            colour: self.colour,
+        }
+    }
+}
+
+/// One column (row) of a [`LumaReader`]'s frame: the luma of its pixel `c`, 0 outside it
+/// (the same values as reading `(u, v)` one by one, without working out each pixel's place
+/// from both).
+#[derive(Clone, Copy)]
+struct LumaLine<'a> {
+    data: &'a [u8],
+    base: usize,
+    step: usize,
+    len: usize,
+    colour: bool,
+}
+
+impl LumaLine<'_> {
     #[inline]
-    fn at(&self, u: usize, v: usize) -> u8 {
-        if u >= self.width || v >= self.height {
+    fn at(&self, c: usize) -> u8 {
+        if c >= self.len {
             return 0;
         }
-        let start = v * self.stride;
+        let start = self.base + c * self.step;
         if self.colour {
-            match self.data.get(start + 3 * u..start + 3 * u + 3) {
+            match self.data.get(start..start + 3) {
                 Some(&[r, g, b]) => luma(r, g, b),
                 _ => 0,
             }
         } else {
-            self.data.get(start + u).copied().unwrap_or(0)
+            self.data.get(start).copied().unwrap_or(0)
         }
     }
 }
@@ -442,9 +484,122 @@ fn distance_at(line: &HorizonLine, sc: (f32, f32), (x, y): (f32, f32)) -> f32 {
     sc.0 * x + sc.1 * y - line.offset
 }
 
+/// Columns (rows) of a read whose crossings are kept for a longer read of the same line: a
+/// 1024-pixel-wide frame read every other column. A wider one is read again in full.
+const MAX_WALK: usize = 512;
+
+/// What a read found where the line crosses one column (row) of the frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+enum Crossing {
+    /// Not walked (past [`MAX_WALK`]), or no finite guess where the line crosses: nothing
+    /// read, and the walk's last crossing kept as the next column's guess.
+    #[default]
+    NoGuess,
+    /// Newton's steps failed (the camera model, not the reach): the next column's guess is
+    /// the pinhole one.
+    Lost,
+    /// Newton's steps left the read's reach: a longer reach may have gone on.
+    OutOfReach,
+    /// Found at `b`, the next column's guess; `across` is what a read takes from it, `None`
+    /// where the distance across the line cannot be read there (whatever the reach).
+    Found { b: f32, across: Option<Across> },
+}
+
+/// The line across one column (row) where it crosses it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Across {
+    /// Pixels per unit of v (or u) across the line; positive towards the ground.
+    k: f32,
+    /// |∇D| and the crossing's undistorted point, which the half's sums take.
+    norm: f32,
+    point: (f32, f32),
+}
+
+/// The crossings of one read, column (row) by column, and the reaches it was read to: a
+/// longer read of the same line finds the same crossings (its reach bounds Newton's steps
+/// only more loosely) and reads only the pixels it adds to each column.
+struct Walk {
+    /// Each column's guess (as bits: NaN compares too) and what was found from it, for the
+    /// first `len` columns.
+    crossings: [(u32, Crossing); MAX_WALK],
+    len: usize,
+    /// Every column read has its crossing here.
+    complete: bool,
+    reaches: (f32, f32),
+}
+
+impl Walk {
+    const fn new() -> Self {
+        Walk {
+            crossings: [(0, Crossing::NoGuess); MAX_WALK],
+            len: 0,
+            complete: false,
+            reaches: (0.0, 0.0),
+        }
+    }
+}
+
+/// The rows (columns) of a column (row) a read takes on either side of the crossing at `b`,
+/// `reach_sky` pixels on its sky side and `reach_ground` on its ground side: first and last,
+/// inside the frame's `minor` ones. `None` where that leaves none.
+fn read_range(
+    b: f32,
+    k: f32,
+    (reach_sky, reach_ground): (f32, f32),
+    minor: usize,
+) -> Option<(usize, usize)> {
+    let (lo, hi) = if k > 0.0 {
+        (b - reach_sky / k, b + reach_ground / k)
+    } else {
+        (b + reach_ground / k, b - reach_sky / k)
+    };
+    let first = libm::ceilf(lo).max(0.0) as usize;
+    let last = libm::floorf(hi).min(minor as f32 - 1.0);
+    if last < 0.0 {
+        return None;
+    }
+    let last = last as usize;
+    (first <= last).then_some((first, last))
+}
+
+/// Bins the pixels `range` of column (row) `a`, the line crossing it at `b` with `k` pixels
+/// per unit across it, into `profile`; the number of pixels binned.
+fn bin_pixels(
+    profile: &mut Profile,
+    pixels: &LumaReader<'_>,
+    along_columns: bool,
+    (a, b, k): (usize, f32, f32),
+    range: core::ops::RangeInclusive<usize>,
+) -> u32 {
+    let mut binned = 0;
+    let line = pixels.line(along_columns, a);
+    for c in range {
+        let d = (c as f32 - b) * k;
+        // The bin is the floor of `f`; it lies in [0, BINS) exactly when `f` does, and
+        // there the floor is the truncation.
+        let f = d / BIN_PX + HALF_BINS as f32 + 0.5;
+        if !(0.0..BINS as f32).contains(&f) {
+            continue;
+        }
+        let bin = f as i32 as usize;
+        let value = line.at(c);
+        if let (Some(sum), Some(count), Some(clip)) = (
+            profile.sum.get_mut(bin),
+            profile.count.get_mut(bin),
+            profile.clipped.get_mut(bin),
+        ) {
+            *sum += f32::from(value);
+            *count += 1;
+            *clip += u32::from(value >= 250);
+        }
+        binned += 1;
+    }
+    binned
+}
+
 /// The two half-profiles across `line` (left and right of the principal point), read from
 /// `reach_sky` pixels on its sky side to `reach_ground` on its ground side, and the number of
-/// pixels read.
+/// pixels read. The crossings found are kept in `walk`.
 fn read_halves(
     frame: &Frame<'_>,
     camera: &Camera,
@@ -452,6 +607,7 @@ fn read_halves(
     sc: (f32, f32),
     along_columns: bool,
     (reach_sky, reach_ground): (f32, f32),
+    walk: &mut Walk,
 ) -> ([Profile; 2], u32) {
     let (w, h) = (frame.width(), frame.height());
     let (major, minor) = if along_columns { (w, h) } else { (h, w) };
@@ -465,7 +621,16 @@ fn read_halves(
     let distorted = camera.k1 != 0.0 || camera.k2 != 0.0;
     let mut previous: Option<f32> = None;
     let pixels = LumaReader::new(frame);
+    walk.reaches = (reach_sky, reach_ground);
+    walk.complete = major.div_ceil(step) <= MAX_WALK;
+    walk.len = 0;
     for a in (0..major).step_by(step) {
+        let mut record = |start: f32, crossing: Crossing| {
+            if let Some(slot) = walk.crossings.get_mut(walk.len) {
+                *slot = (start.to_bits(), crossing);
+                walk.len += 1;
+            }
+        };
         let af = a as f32;
         // Where the line crosses this column (row): pinhole guess, then Newton on the
         // distorted model.
@@ -484,11 +649,13 @@ fn read_halves(
         if distorted && let Some(p) = previous {
             b = p;
         }
+        let start = b;
         if !b.is_finite() {
+            record(start, Crossing::NoGuess);
             continue;
         }
         let mut slope = 0.0;
-        let mut ok = true;
+        let mut failed = None;
         // D is linear in the pixel without distortion: one step lands on the line.
         for _ in 0..if distorted { 2 } else { 1 } {
             let (p0, p1) = (pixel(af, b), pixel(af, b + 1.0));
@@ -501,16 +668,17 @@ fn read_halves(
                     b -= d0 / slope;
                 }
                 _ => {
-                    ok = false;
+                    failed = Some(Crossing::Lost);
                     break;
                 }
             }
             if !b.is_finite() || b < -reach_sky - 2.0 || b > minor as f32 + reach_sky + 2.0 {
-                ok = false;
+                failed = Some(Crossing::OutOfReach);
                 break;
             }
         }
-        if !ok {
+        if let Some(failed) = failed {
+            record(start, failed);
             previous = None;
             continue;
         }
@@ -519,68 +687,121 @@ fn read_halves(
         let p = pixel(af, b);
         let q = pixel(af + 1.0, b);
         // The crossing's own undistorted point is also what the half's mean point adds.
-        let (Some((lx, ly)), Some(d_next)) = (
+        let across = match (
             camera.undistort_pixel(p.0, p.1),
             distance(camera, &line, sc, q.0, q.1),
-        ) else {
+        ) {
+            (Some(point), Some(d_next)) => {
+                let other = d_next - distance_at(&line, sc, point);
+                let norm = libm::sqrtf(slope * slope + other * other);
+                // Pixels per unit of v (or u) across the line; positive towards the ground.
+                let k = slope / norm;
+                (!(norm.is_nan() || norm <= 0.0) && libm::fabsf(k) >= 0.3).then_some(Across {
+                    k,
+                    norm,
+                    point,
+                })
+            }
+            _ => None,
+        };
+        record(start, Crossing::Found { b, across });
+        let Some(Across { k, norm, point }) = across else {
             continue;
         };
-        let d_here = distance_at(&line, sc, (lx, ly));
-        let other = d_next - d_here;
-        let norm = libm::sqrtf(slope * slope + other * other);
-        if norm.is_nan() || norm <= 0.0 {
+        let Some((first, last)) = read_range(b, k, (reach_sky, reach_ground), minor) else {
             continue;
-        }
-        // Pixels per unit of v (or u) across the line; positive towards the ground.
-        let k = slope / norm;
-        if libm::fabsf(k) < 0.3 {
-            continue;
-        }
-        let (lo, hi) = if k > 0.0 {
-            (b - reach_sky / k, b + reach_ground / k)
-        } else {
-            (b + reach_ground / k, b - reach_sky / k)
         };
-        let first = libm::ceilf(lo).max(0.0) as usize;
-        let last = libm::floorf(hi).min(minor as f32 - 1.0);
-        if last < 0.0 {
-            continue;
-        }
-        let last = last as usize;
-        if first > last {
-            continue;
-        }
         let half = usize::from(af >= centre);
         let Some(profile) = halves.get_mut(half) else {
             continue;
         };
-        profile.point = (profile.point.0 + lx, profile.point.1 + ly);
+        profile.point = (profile.point.0 + point.0, profile.point.1 + point.1);
         profile.gradient += norm;
         profile.columns += 1;
-        for c in first..=last {
-            let d = (c as f32 - b) * k;
-            // The bin is the floor of `f`; it lies in [0, BINS) exactly when `f` does, and
-            // there the floor is the truncation.
-            let f = d / BIN_PX + HALF_BINS as f32 + 0.5;
-            if !(0.0..BINS as f32).contains(&f) {
-                continue;
-            }
-            let bin = f as i32 as usize;
-            let (u, v) = if along_columns { (a, c) } else { (c, a) };
-            let value = pixels.at(u, v);
-            if let (Some(sum), Some(count), Some(clip)) = (
-                profile.sum.get_mut(bin),
-                profile.count.get_mut(bin),
-                profile.clipped.get_mut(bin),
-            ) {
-                *sum += f32::from(value);
-                *count += 1;
-                *clip += u32::from(value >= 250);
-            }
-            total_pixels += 1;
-        }
+        total_pixels += bin_pixels(profile, &pixels, along_columns, (a, b, k), first..=last);
     }
     (halves, total_pixels)
+}
+
+/// [`read_halves`] of the same line to `reaches` at least as long as those of the read
+/// `walk` kept (`read`: its half-profiles and pixel count), from that read: the crossings
+/// are the same where none left the shorter reach, and the profiles' sums are whole numbers
+/// (exact in any order), so only the pixels the longer reach adds are read. The halves' mean
+/// points and gradients are summed again in the columns' order. `None` where the walk cannot
+/// tell (a crossing out of its reach, columns past [`MAX_WALK`], a shorter reach).
+fn extend_halves(
+    frame: &Frame<'_>,
+    camera: &Camera,
+    along_columns: bool,
+    walk: &Walk,
+    read: &([Profile; 2], u32),
+    reaches: (f32, f32),
+) -> Option<([Profile; 2], u32)> {
+    let (short_sky, short_ground) = walk.reaches;
+    if !(walk.complete && reaches.0 >= short_sky && reaches.1 >= short_ground) {
+        return None;
+    }
+    let crossings = walk.crossings.get(..walk.len)?;
+    if crossings.iter().any(|&(_, c)| c == Crossing::OutOfReach) {
+        return None;
+    }
+    let (w, h) = (frame.width(), frame.height());
+    let (major, minor) = if along_columns { (w, h) } else { (h, w) };
+    let centre = if along_columns { camera.cx } else { camera.cy };
+    let step = if major > 200 { 2 } else { 1 };
+    let pixels = LumaReader::new(frame);
+    let (mut halves, mut total_pixels) = (read.0, read.1);
+    for profile in &mut halves {
+        profile.point = (0.0, 0.0);
+        profile.gradient = 0.0;
+        profile.columns = 0;
+    }
+    for (a, &(_, crossing)) in (0..major).step_by(step).zip(crossings) {
+        let Crossing::Found {
+            b,
+            across: Some(Across { k, norm, point }),
+        } = crossing
+        else {
+            continue;
+        };
+        let Some((first, last)) = read_range(b, k, reaches, minor) else {
+            continue;
+        };
+        let half = usize::from(a as f32 >= centre);
+        let Some(profile) = halves.get_mut(half) else {
+            continue;
+        };
+        profile.point = (profile.point.0 + point.0, profile.point.1 + point.1);
+        profile.gradient += norm;
+        profile.columns += 1;
+        let column = (a, b, k);
+        total_pixels += match read_range(b, k, walk.reaches, minor) {
+            // The longer reach's range holds the shorter's: the pixels either side of it.
+            Some((short_first, short_last)) => {
+                let before = if short_first > first {
+                    bin_pixels(
+                        profile,
+                        &pixels,
+                        along_columns,
+                        column,
+                        first..=short_first - 1,
+                    )
+                } else {
+                    0
+                };
+                before
+                    + bin_pixels(
+                        profile,
+                        &pixels,
+                        along_columns,
+                        column,
+                        short_last + 1..=last,
+                    )
+            }
+            None => bin_pixels(profile, &pixels, along_columns, column, first..=last),
+        };
+    }
+    Some((halves, total_pixels))
 }
 
 /// Moves `line` to the full-resolution edge within `search_px` pixels on its sky side (and a
@@ -657,23 +878,37 @@ fn place_once(
             sky_brighter,
         )
     };
-    let read_and_find = |read_px: f32, smoothing_px: f32| {
-        let (halves, pixels) = read_halves(
-            frame,
-            camera,
-            line,
-            sc,
-            along_columns,
-            (read_px + 3.0 + smoothing_px, ground_px + 3.0),
-        );
+    let find_in = |read: ([Profile; 2], u32), read_px: f32| {
+        let (halves, pixels) = read;
         let [left, right] = &halves;
         let both = left.merged(right);
         let whole = edge_in(&both, read_px);
         (halves, pixels, both, whole, read_px)
     };
-    let mut read = read_and_find(search_px, SMOOTHING_PX);
+    let mut walk = Walk::new();
+    let short_reaches = (search_px + 3.0 + SMOOTHING_PX, ground_px + 3.0);
+    let short = read_halves(
+        frame,
+        camera,
+        line,
+        sc,
+        along_columns,
+        short_reaches,
+        &mut walk,
+    );
+    let mut read = find_in(short, search_px);
     if transition_px > search_px && read.3.is_some_and(|e| e.walk_reached_read_end) {
-        read = read_and_find(transition_px, 0.0);
+        let reaches = (transition_px + 3.0, ground_px + 3.0);
+        let long = extend_halves(
+            frame,
+            camera,
+            along_columns,
+            &walk,
+            &(read.0, read.1),
+            reaches,
+        )
+        .unwrap_or_else(|| read_halves(frame, camera, line, sc, along_columns, reaches, &mut walk));
+        read = find_in(long, transition_px);
     }
     let (halves, total_pixels, both, whole, read_px) = read;
     let [left, right] = halves;
@@ -760,4 +995,114 @@ fn place_once(
     };
     let turn = (libm::fabsf(change) <= MAX_TURN).then_some(through_halves);
     (shifted, placement, turn)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A longer read taken from a shorter one's walk is the longer read taken afresh, to the
+    /// bit: on distorted and undistorted cameras, frames read every column and every other,
+    /// lines crossing the frame and lines leaving it (crossings out of the shorter reach,
+    /// where the walk must refuse).
+    #[test]
+    fn a_longer_read_from_the_shorter_ones_walk_is_the_longer_read() {
+        let (mut extended, mut refused) = (0, 0);
+        for (width, height) in [(200usize, 150usize), (320, 240)] {
+            let data: std::vec::Vec<u8> = (0..width * height * 3)
+                .map(|i| ((i * 2_654_435_761usize) >> 11) as u8)
+                .collect();
+            let frame = Frame::rgb(width, height, &data).expect("frame");
+            for k1 in [0.0f32, -0.25] {
+                let mut camera = Camera::ideal(width as u32, height as u32, 1.1);
+                camera.k1 = k1;
+                camera.k2 = 0.05 * k1;
+                for roll_deg in [-60.0f32, -20.0, -3.0, 0.0, 0.4, 11.0, 35.0, 80.0, 150.0] {
+                    for offset in [-0.5f32, -0.3, -0.05, 0.0, 0.12, 0.38, 0.6] {
+                        let line = HorizonLine {
+                            camera_roll_rad: roll_deg.to_radians(),
+                            offset,
+                        };
+                        let sc = (
+                            libm::sinf(line.camera_roll_rad),
+                            libm::cosf(line.camera_roll_rad),
+                        );
+                        let along_columns =
+                            libm::fabsf(sc.1 * camera.fx) >= libm::fabsf(sc.0 * camera.fy);
+                        for (short, long) in [
+                            ((10.0f32, 6.0f32), (27.0f32, 6.0f32)),
+                            ((5.0, 3.0), (40.0, 9.0)),
+                            ((12.0, 6.0), (12.0, 6.0)),
+                        ] {
+                            let mut walk = Walk::new();
+                            let read = read_halves(
+                                &frame,
+                                &camera,
+                                line,
+                                sc,
+                                along_columns,
+                                short,
+                                &mut walk,
+                            );
+                            let Some(from_walk) =
+                                extend_halves(&frame, &camera, along_columns, &walk, &read, long)
+                            else {
+                                refused += 1;
+                                continue;
+                            };
+                            let mut fresh_walk = Walk::new();
+                            let fresh = read_halves(
+                                &frame,
+                                &camera,
+                                line,
+                                sc,
+                                along_columns,
+                                long,
+                                &mut fresh_walk,
+                            );
+                            assert_eq!(
+                                from_walk, fresh,
+                                "{width}x{height}, k1 {k1}, roll {roll_deg}°, offset {offset}, {short:?} -> {long:?}"
+                            );
+                            assert!(fresh.1 >= read.1);
+                            extended += 1;
+                        }
+                    }
+                }
+            }
+        }
+        // Both ways were taken: most lines from the walk, lines leaving the frame afresh.
+        assert!(
+            extended > 200 && refused > 10,
+            "extended {extended}, refused {refused}"
+        );
+    }
+
+    /// A shorter reach than the walk's, or a walk past its kept columns, is read afresh.
+    #[test]
+    fn a_walk_is_not_extended_to_a_shorter_reach() {
+        let data = [128u8; 64 * 48];
+        let frame = Frame::grey(64, 48, &data).expect("frame");
+        let camera = Camera::ideal(64, 48, 1.0);
+        let line = HorizonLine {
+            camera_roll_rad: 0.0,
+            offset: 0.0,
+        };
+        let mut walk = Walk::new();
+        let read = read_halves(
+            &frame,
+            &camera,
+            line,
+            (0.0, 1.0),
+            true,
+            (10.0, 5.0),
+            &mut walk,
+        );
+        assert!(read.1 > 0);
+        assert!(extend_halves(&frame, &camera, true, &walk, &read, (10.0, 5.0)).is_some());
+        assert!(extend_halves(&frame, &camera, true, &walk, &read, (9.0, 5.0)).is_none());
+        assert!(extend_halves(&frame, &camera, true, &walk, &read, (10.0, 4.0)).is_none());
+        walk.complete = false;
+        assert!(extend_halves(&frame, &camera, true, &walk, &read, (20.0, 5.0)).is_none());
+    }
 }

@@ -336,9 +336,11 @@ fn top_profile(
     let (nx, ny) = (libm::sinf(angle), libm::cosf(angle));
     // Pixel counts and luma sums in integers: a bin holds a row or two of the working image,
     // far under 2^24 / 255 pixels, so adding them as f32 one at a time would be exact and give
-    // the same values; in integers the adds do not wait on each other's rounding.
-    let mut counts = [[0u32; TOP_BINS]; 2];
-    let mut sums = [[0u32; TOP_BINS]; 2];
+    // the same values; in integers the adds do not wait on each other's rounding. A bin's
+    // count and sum are one word (the count in the high half), and neighbouring pixels,
+    // which most often fall in the same bin, go to two copies of the bins taken in turn:
+    // each add then waits on the one two pixels back, not on the one before.
+    let mut cells = [[[0u64; TOP_BINS]; 2]; 2];
     // Bin of a working pixel: its sky-ward distance in rho steps, offset by the reach and
     // rounded; linear along a row, as is the place along the line.
     let inverse = sky_ward / rho_step;
@@ -381,7 +383,7 @@ fn top_profile(
         let (before, after) = pixels.split_at(cut.min(pixels.len()));
         let halves_in_order = if rising { [0, 1] } else { [1, 0] };
         for ((part, offset), half) in [(before, 0), (after, cut)].into_iter().zip(halves_in_order) {
-            let (Some(counts), Some(sums)) = (counts.get_mut(half), sums.get_mut(half)) else {
+            let [Some(even), Some(odd)] = cells.each_mut().map(|c| c.get_mut(half)) else {
                 continue;
             };
             // The pixels whose bin is inside the profile: again a run of the part, where the
@@ -408,24 +410,43 @@ fn top_profile(
             // Columns counted in f32 from the run's first: exact (far under 2^24), and the
             // same values as converting each.
             let mut column = (first + offset + start) as u32 as f32;
-            for &value in part.get(start..end).unwrap_or(&[]) {
+            let mut add = |cells: &mut [u64; TOP_BINS], value: u8| {
                 let index = (row_start + column * along_row) as i32 as usize;
                 column += 1.0;
-                if let (Some(count), Some(sum)) = (counts.get_mut(index), sums.get_mut(index)) {
-                    *count += 1;
-                    *sum += u32::from(value);
+                if let Some(cell) = cells.get_mut(index) {
+                    *cell += PIXEL | u64::from(value);
                 }
+            };
+            let run = part.get(start..end).unwrap_or(&[]);
+            let pairs = run.chunks_exact(2);
+            let last = pairs.remainder();
+            for pair in pairs {
+                if let &[a, b] = pair {
+                    add(even, a);
+                    add(odd, b);
+                }
+            }
+            for &value in last {
+                add(even, value);
             }
         }
     }
     let mut halves = [[(0.0f32, 0.0f32); TOP_BINS]; 2];
-    for ((half, counts), sums) in halves.iter_mut().zip(&counts).zip(&sums) {
-        for ((bin, &count), &sum) in half.iter_mut().zip(counts).zip(sums) {
-            *bin = (count as f32, sum as f32);
+    let [even, odd] = &cells;
+    for ((half, even), odd) in halves.iter_mut().zip(even).zip(odd) {
+        for ((bin, &a), &b) in half.iter_mut().zip(even).zip(odd) {
+            let cell = a + b;
+            *bin = (
+                (cell >> 32) as u32 as f32,
+                (cell & 0xffff_ffff) as u32 as f32,
+            );
         }
     }
     halves
 }
+
+/// One pixel in a profile's cell: counts in the high half of the word, luma in the low.
+const PIXEL: u64 = 1 << 32;
 
 /// [`first_where`] from a guess of where it is: a few steps from the guess when it is near
 /// (the columns where a linear bin crosses a bound, solved in closed form, are off by a
