@@ -519,9 +519,8 @@ struct Across {
 /// longer read of the same line finds the same crossings (its reach bounds Newton's steps
 /// only more loosely) and reads only the pixels it adds to each column.
 struct Walk {
-    /// Each column's guess (as bits: NaN compares too) and what was found from it, for the
-    /// first `len` columns.
-    crossings: [(u32, Crossing); MAX_WALK],
+    /// What was found in each column, for the first `len` columns.
+    crossings: [Crossing; MAX_WALK],
     len: usize,
     /// Every column read has its crossing here.
     complete: bool,
@@ -531,7 +530,7 @@ struct Walk {
 impl Walk {
     const fn new() -> Self {
         Walk {
-            crossings: [(0, Crossing::NoGuess); MAX_WALK],
+            crossings: [Crossing::NoGuess; MAX_WALK],
             len: 0,
             complete: false,
             reaches: (0.0, 0.0),
@@ -625,9 +624,9 @@ fn read_halves(
     walk.complete = major.div_ceil(step) <= MAX_WALK;
     walk.len = 0;
     for a in (0..major).step_by(step) {
-        let mut record = |start: f32, crossing: Crossing| {
+        let mut record = |crossing: Crossing| {
             if let Some(slot) = walk.crossings.get_mut(walk.len) {
-                *slot = (start.to_bits(), crossing);
+                *slot = crossing;
                 walk.len += 1;
             }
         };
@@ -649,9 +648,8 @@ fn read_halves(
         if distorted && let Some(p) = previous {
             b = p;
         }
-        let start = b;
         if !b.is_finite() {
-            record(start, Crossing::NoGuess);
+            record(Crossing::NoGuess);
             continue;
         }
         let mut slope = 0.0;
@@ -678,7 +676,7 @@ fn read_halves(
             }
         }
         if let Some(failed) = failed {
-            record(start, failed);
+            record(failed);
             previous = None;
             continue;
         }
@@ -704,7 +702,7 @@ fn read_halves(
             }
             _ => None,
         };
-        record(start, Crossing::Found { b, across });
+        record(Crossing::Found { b, across });
         let Some(Across { k, norm, point }) = across else {
             continue;
         };
@@ -742,7 +740,7 @@ fn extend_halves(
         return None;
     }
     let crossings = walk.crossings.get(..walk.len)?;
-    if crossings.iter().any(|&(_, c)| c == Crossing::OutOfReach) {
+    if crossings.contains(&Crossing::OutOfReach) {
         return None;
     }
     let (w, h) = (frame.width(), frame.height());
@@ -756,7 +754,7 @@ fn extend_halves(
         profile.gradient = 0.0;
         profile.columns = 0;
     }
-    for (a, &(_, crossing)) in (0..major).step_by(step).zip(crossings) {
+    for (a, &crossing) in (0..major).step_by(step).zip(crossings) {
         let Crossing::Found {
             b,
             across: Some(Across { k, norm, point }),

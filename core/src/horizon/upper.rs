@@ -113,9 +113,6 @@ impl Filling<'_> {
     }
 }
 
-/// One pixel in a [`Profile::measure`] bin's word: counts in the high half, luma in the low.
-const PIXEL: u64 = 1 << 32;
-
 /// A bin's pixel count, luma sum and sum of squares in integers (see [`Profile::measure`]).
 #[derive(Clone, Copy, Default)]
 struct WholeBin {
@@ -414,33 +411,16 @@ impl Profile {
         // before. A bin holds about one working row's length of pixels (a sum of squares near
         // 2^24 takes 258 pixels at 255); where a total is over, the f32 sums are taken as
         // they always were.
-        // A bin's count and sum are one word (the count in the high half), and pixels in
-        // turn go to two copies of the bins: neighbouring pixels most often fall in the same
-        // bin, and each add then waits on the one two pixels back, not on the one before.
-        let mut copies = [[(0u64, 0u64); BINS]; 2];
-        let mut second = false;
+        let mut whole = [WholeBin::default(); BINS];
         let band = (chosen, sky_ward, rho_step, reach);
         each_pixel(grey, geo, view, band, floor, |index, value| {
-            second = !second;
-            if let Some(bin) = copies
-                .get_mut(usize::from(second))
-                .and_then(|copy| copy.get_mut(index))
-            {
-                let value = u64::from(value);
-                bin.0 += PIXEL | value;
-                bin.1 += value * value;
+            if let Some(bin) = whole.get_mut(index) {
+                let value = u32::from(value);
+                bin.n += 1;
+                bin.sum += value;
+                bin.sum2 += u64::from(value * value);
             }
         });
-        let mut whole = [WholeBin::default(); BINS];
-        let [first, other] = &copies;
-        for ((bin, a), b) in whole.iter_mut().zip(first).zip(other) {
-            let counted = a.0 + b.0;
-            *bin = WholeBin {
-                n: (counted >> 32) as u32,
-                sum: (counted & 0xffff_ffff) as u32,
-                sum2: a.1 + b.1,
-            };
-        }
         if whole.iter().all(WholeBin::exact_in_f32) {
             for (bin, whole) in profile.bins.iter_mut().zip(&whole) {
                 *bin = Bin {
