@@ -40,10 +40,16 @@ def fail(message):
     sys.exit(2)
 
 
+def camera_file(set_dir):
+    """The set's camera file, or None where it has none."""
+    camera = os.path.join(set_dir, "camera.toml")
+    return camera if os.path.exists(camera) else None
+
+
 def frame_size(set_dir):
     """`WIDTHxHEIGHT` from the set's camera file, or `unknown` without one."""
-    camera = os.path.join(set_dir, "camera.toml")
-    if not os.path.exists(camera):
+    camera = camera_file(set_dir)
+    if camera is None:
         return "unknown"
     try:
         with open(camera, "rb") as f:
@@ -59,8 +65,8 @@ def frame_size(set_dir):
 def detect(build, set_dir):
     """One build's answers on one set: [(answer, ms)] in frame order."""
     command = [build, "detect", set_dir]
-    camera = os.path.join(set_dir, "camera.toml")
-    if os.path.exists(camera):
+    camera = camera_file(set_dir)
+    if camera is not None:
         command += ["--camera", camera]
     try:
         done = subprocess.run(command, capture_output=True, check=False)
@@ -98,11 +104,15 @@ def summary(per_run):
     }
 
 
+def ratio(baseline, candidate):
+    """baseline / candidate, or None where the candidate took no time."""
+    return baseline / candidate if candidate > 0 else None
+
+
 def paired(baseline, candidate):
     """The median over the runs of baseline / candidate (None where a candidate took 0)."""
-    if any(c <= 0 for c in candidate):
-        return None
-    return statistics.median(b / c for b, c in zip(baseline, candidate))
+    ratios = [ratio(b, c) for b, c in zip(baseline, candidate)]
+    return None if None in ratios else statistics.median(ratios)
 
 
 def main():
@@ -159,10 +169,8 @@ def main():
                 "frames_per_run": len(times["baseline"][size][0]),
                 "baseline": base,
                 "candidate": cand,
-                "speedup_median": base["ms_median"] / cand["ms_median"]
-                if cand["ms_median"] > 0
-                else None,
-                "speedup_mean": base["ms_mean"] / cand["ms_mean"] if cand["ms_mean"] > 0 else None,
+                "speedup_median": ratio(base["ms_median"], cand["ms_median"]),
+                "speedup_mean": ratio(base["ms_mean"], cand["ms_mean"]),
                 # Each run's two medians were taken minutes apart at most: their ratio, run by
                 # run, is not moved by a machine that is slower in one run than in another.
                 "speedup_median_paired": paired(

@@ -7,7 +7,7 @@
 
 mod common;
 
-use common::{binary, python, score_real, succeeded};
+use common::{binary, detect_set, python, score_real, succeeded};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -136,15 +136,7 @@ fn a_sea_seen_from_above_through_the_chain_is_not_trusted_as_a_sky() {
     for chain_seed in [1, 2] {
         let chained = dir.join(format!("chain_{chain_seed}"));
         pass_through_chain(&set, &chained, "bayer,analogue,jpeg-half", chain_seed);
-        let csv = succeeded(
-            binary()
-                .arg("detect")
-                .arg(&chained)
-                .arg("--camera")
-                .arg(chained.join("camera.toml"))
-                .output()
-                .expect("runs detect"),
-        );
+        let csv = detect_set(&chained);
         let truth = std::fs::read_to_string(chained.join("truth.csv")).expect("truth.csv");
         let out_of_view: Vec<&str> = truth
             .lines()

@@ -6,7 +6,7 @@
 
 mod common;
 
-use common::{binary, python, succeeded};
+use common::{binary, detect_set, python, succeeded};
 use std::os::unix::fs::PermissionsExt;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -28,7 +28,8 @@ fn compare(baseline: &Path, candidate: &Path, extra: &[&str], sets: &[&Path]) ->
         .expect("runs python")
 }
 
-/// A "build" that is the real one with its output changed by `awk_program` (or that fails).
+/// A "build": the shell script `body`, where `REAL` stands for the real build (to change its
+/// output, or to fail in its place).
 fn wrapped_build(dir: &Path, name: &str, body: &str) -> PathBuf {
     let path = dir.join(name);
     let real = env!("CARGO_BIN_EXE_skyframe-horizon");
@@ -88,15 +89,7 @@ fn a_changed_answer_is_found_where_it_is_and_the_same_build_agrees_with_itself()
         "shifted",
         r#"REAL "$@" | awk -F, -v OFS=, 'NR == 3 { $2 = $2 + 1 } { print }'"#,
     );
-    let detected = succeeded(
-        binary()
-            .arg("detect")
-            .arg(&set)
-            .arg("--camera")
-            .arg(set.join("camera.toml"))
-            .output()
-            .expect("runs detect"),
-    );
+    let detected = detect_set(&set);
     let frame_1: Vec<&str> = detected
         .lines()
         .nth(2)

@@ -27,6 +27,19 @@ pub fn succeeded(out: Output) -> String {
     stdout
 }
 
+/// `detect`'s CSV for the set `dir`, read with its own camera file.
+pub fn detect_set(dir: &Path) -> String {
+    succeeded(
+        binary()
+            .arg("detect")
+            .arg(dir)
+            .arg("--camera")
+            .arg(dir.join("camera.toml"))
+            .output()
+            .expect("runs detect"),
+    )
+}
+
 /// `bench --real`'s accuracy of our detector on the set `dir`, whose name is `name`.
 pub fn score_real(dir: &Path, name: &str) -> serde_json::Value {
     let out = binary()
