@@ -257,6 +257,11 @@ fn bench_scores_a_real_set_directory_and_refuses_a_bad_one() {
     assert_eq!(set["generator"], "real");
     assert_eq!(set["ours"]["accuracy"]["frames"], 6);
     assert_eq!(set["ours"]["accuracy"]["within_2deg"], 1.0, "{set}");
+    // Its frames are files: ours was timed on each right after decoding it, as OpenCV is.
+    assert_eq!(
+        report["speed"][0]["ours_timed_after_decoding"], true,
+        "{report}"
+    );
     // A truth file that does not match the frames: one line, exit 2.
     std::fs::write(
         dir.join("truth.csv"),

@@ -63,6 +63,8 @@ fn bench_compares_with_the_pinned_opencv_on_the_same_frames() {
     }
     let speed = &report["speed"][0];
     assert!(f64_at(speed, &["speedup_median"]) > 0.0, "{speed}");
+    // Both timed each frame right after decoding its file.
+    assert_eq!(speed["ours_timed_after_decoding"], true, "{speed}");
 }
 
 #[test]
