@@ -21,6 +21,7 @@ mod attitude;
 mod blocks;
 mod camera;
 mod edges;
+mod fft;
 mod frame;
 mod grid;
 mod hough;
