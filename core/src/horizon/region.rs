@@ -501,9 +501,13 @@ fn bin_mean(bins: &Bins, i: usize) -> Option<f32> {
 }
 
 /// The steepest fall towards the ground (bin index falling) among the bins near the
-/// profile's highest, searched in `range`: its size and the index of the bin between its
-/// two sides.
-fn steepest_top_fall(bins: &Bins, range: core::ops::Range<usize>) -> Option<(f32, usize)> {
+/// profile's highest (within `top_share` of its range), searched in `range`: its size and the
+/// index of the bin between its two sides.
+fn steepest_top_fall(
+    bins: &Bins,
+    range: core::ops::Range<usize>,
+    top_share: f32,
+) -> Option<(f32, usize)> {
     let mean = |i: usize| bin_mean(bins, i);
     let (mut high, mut low) = (f32::MIN, f32::MAX);
     for i in 0..TOP_BINS {
@@ -512,7 +516,7 @@ fn steepest_top_fall(bins: &Bins, range: core::ops::Range<usize>) -> Option<(f32
             low = low.min(m);
         }
     }
-    let near_top = high - TOP_SHARE * (high - low);
+    let near_top = high - top_share * (high - low);
     let mut best: Option<(f32, usize)> = None;
     for i in range.start.max(TOP_SPAN)..range.end.min(TOP_BINS) {
         let (Some(sky), Some(ground)) = (mean(i), mean(i - TOP_SPAN)) else {
@@ -562,16 +566,39 @@ pub(crate) fn top_step(
     rho_step: f32,
     sky_ward: f32,
 ) -> Option<TopStep> {
+    top_step_above(grey, geo, camera, (line, None), rho_step, sky_ward)
+}
+
+/// Where [`top_step_above`] looks for the fall: from `bins` on the sky side of the line (at the
+/// foot of the centre's perpendicular, on each direction tried), and starting within
+/// `top_share` of the profile's range of its highest bin (for [`top_step`]: anywhere, and
+/// [`TOP_SHARE`]).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct AboveLine {
+    pub bins: usize,
+    pub top_share: f32,
+}
+
+/// [`top_step`], the fall looked for only where `above` says.
+pub(crate) fn top_step_above(
+    grey: &[u8],
+    geo: Working,
+    camera: &Camera,
+    (line, above): (Line, Option<AboveLine>),
+    rho_step: f32,
+    sky_ward: f32,
+) -> Option<TopStep> {
     if !(rho_step.is_finite() && rho_step > 0.0) {
         return None;
     }
+    let (first, top_share) = above.map_or((0, TOP_SHARE), |a| (TOP_REACH + a.bins, a.top_share));
     let mut best: Option<Candidate> = None;
     let try_turn = |turn: i32, best: &mut Option<Candidate>| {
         let delta = turn as f32 * FINE_STEP;
         // Turned about the foot of the centre's perpendicular on the line.
         let direction = (line.angle + delta, line.rho * libm::cosf(delta));
         let halves = top_profile(grey, geo, camera, direction, rho_step, sky_ward);
-        if let Some((fall, at)) = steepest_top_fall(&joined(&halves), 0..TOP_BINS)
+        if let Some((fall, at)) = steepest_top_fall(&joined(&halves), first..TOP_BINS, top_share)
             && best.as_ref().is_none_or(|b| fall > b.fall)
         {
             *best = Some(Candidate {
@@ -599,7 +626,7 @@ pub(crate) fn top_step(
         ..
     } = best?;
     let near = at.saturating_sub(TOP_HALVES_AGREE + 2)..at + TOP_HALVES_AGREE + 3;
-    let [a, b] = halves.map(|h| steepest_top_fall(&h, near.clone()).map(|(_, i)| i));
+    let [a, b] = halves.map(|h| steepest_top_fall(&h, near.clone(), top_share).map(|(_, i)| i));
     let halves_agree = matches!((a, b), (Some(a), Some(b)) if a.abs_diff(b) <= TOP_HALVES_AGREE);
     let whole = joined(&halves);
     let mean = |i: usize| bin_mean(&whole, i);

@@ -1706,3 +1706,40 @@ fn a_bent_shaken_pattern_across_a_hazy_horizon_is_notched_out() {
         }
     }
 }
+
+#[test]
+fn a_hazy_band_over_a_turned_ground_edge_is_climbed_to_its_top() {
+    // Far ground lost in haze: a pale band, whitish and barely darker than the blue sky,
+    // brightening up to a crisp step at the horizon, over dark fields whose edge is turned
+    // 6° from the horizon and lies 5° under it. Under sensor noise the horizon's step draws
+    // few edge points, the fields' edge splits the frame far better, and its own profile
+    // keeps rising above it (`aerial` seed 140 `sensor-noise`: 24 of 40 frames trusted on the
+    // edge). The horizon is the top step across a turned line.
+    let camera = camera_320();
+    for (i, &(roll, pitch, turn)) in [
+        (-9.0f32, -3.0f32, -7.0f32),
+        (22.0, 1.5, -7.0),
+        (-26.0, -7.0, 7.5),
+    ]
+    .iter()
+    .enumerate()
+    {
+        let edge = line_side(camera, (roll + turn) * DEG, (pitch + 5.0) * DEG);
+        let mut rgb = render_rgb(&camera, roll * DEG, pitch * DEG, |u, v, d| {
+            if d <= 0.0 {
+                [160.0, 190.0, 232.0]
+            } else if edge(u, v) <= 0.0 {
+                // Level under the horizon, then darker with depth as the haze thins (a
+                // ramp parallel to the horizon, cut off by the fields' edge).
+                let level = 170.0 - 30.0 * ((d - 0.045) / 0.045).clamp(0.0, 1.0);
+                [level + 2.0, level, level + 6.0]
+            } else {
+                let blotch = 20.0 * (hash((u / 5.0) as i64, (v / 4.0) as i64, 60) - 0.5);
+                [85.0 + blotch, 95.0 + blotch, 80.0 + 0.5 * blotch]
+            }
+        });
+        add_noise(&mut rgb, 12.0, 60 + i as u64);
+        let h = detect_once(camera, Pixels::Rgb(&rgb));
+        assert_attitude(h, roll, pitch, 2.0);
+    }
+}
