@@ -1056,9 +1056,12 @@ impl HorizonDetector {
                 &chosen,
             )
         {
+            // `on_ramp` stays: where the line was at the foot of its ramp (more of the rise
+            // above it than across it), the step found above may be dusk haze's noise
+            // (`synth` `low-light` seed 2 at 320 px: 5 more frames trusted wrong), and the
+            // line keeps the ramp's quarter of its confidence below.
             turned_from = Some(chosen.line);
             chosen = self.tracked(upper);
-            on_ramp = false;
         }
         // A destriped line may still lie inside the transition rather than at its top (the
         // top step found nothing clearer); a clear step above it in the same transition
