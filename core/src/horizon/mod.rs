@@ -1761,13 +1761,11 @@ fn turned_top_over_ramp(c: &LineContext<'_>, grey: &[u8], chosen: &Scored) -> Op
                 grey,
                 c.geo,
                 c.camera,
-                (
-                    line,
-                    Some(region::AboveLine {
-                        bins: RAMP_TOP_ABOVE_BINS,
-                        top_share: RAMP_TOP_SHARE,
-                    }),
-                ),
+                line,
+                Some(region::AboveLine {
+                    bins: RAMP_TOP_ABOVE_BINS,
+                    top_share: RAMP_TOP_SHARE,
+                }),
                 c.rho.step,
                 1.0,
             )?;

@@ -566,7 +566,7 @@ pub(crate) fn top_step(
     rho_step: f32,
     sky_ward: f32,
 ) -> Option<TopStep> {
-    top_step_above(grey, geo, camera, (line, None), rho_step, sky_ward)
+    top_step_above(grey, geo, camera, line, None, rho_step, sky_ward)
 }
 
 /// Where [`top_step_above`] looks for the fall: from `bins` on the sky side of the line (at the
@@ -584,7 +584,8 @@ pub(crate) fn top_step_above(
     grey: &[u8],
     geo: Working,
     camera: &Camera,
-    (line, above): (Line, Option<AboveLine>),
+    line: Line,
+    above: Option<AboveLine>,
     rho_step: f32,
     sky_ward: f32,
 ) -> Option<TopStep> {

@@ -313,8 +313,7 @@ pub fn run_ours(set: &SynthSet) -> Result<(Vec<Answer>, Vec<f64>), Error> {
 /// the frame is in cache, and the decoder has been through the cache before it, as for the
 /// baseline. Without, a fresh copy of the frame decoded or rendered before the run is timed
 /// (the sets rendered for `--no-opencv` have no files): in cache too, but with no decoder
-/// before it, which measured 3–10 % faster than after a decode on `aerial` seeds 137–139 at
-/// 320×240. The frame decoded must be the one the set holds: the answers are scored against
+/// before it, which measured 0–4 % faster than after a decode on `aerial` seeds 137–139. The frame decoded must be the one the set holds: the answers are scored against
 /// the set's truth.
 pub fn run_ours_from(
     set: &SynthSet,
