@@ -104,6 +104,9 @@ pub(crate) struct Placement {
     pub pixels: u32,
     /// What the frame's two halves say of the line's roll.
     pub halves: Halves,
+    /// The line was read only where the sky next to it is not clipped (see
+    /// [`clear_of_glare`]); the clipping measures are the whole line's.
+    pub clear_of_glare: bool,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -605,103 +608,56 @@ fn read_halves(
     line: HorizonLine,
     sc: (f32, f32),
     along_columns: bool,
-    (reach_sky, reach_ground): (f32, f32),
+    ((reach_sky, reach_ground), span): ((f32, f32), Option<Span>),
     walk: &mut Walk,
 ) -> ([Profile; 2], u32) {
     let (w, h) = (frame.width(), frame.height());
     let (major, minor) = if along_columns { (w, h) } else { (h, w) };
-    let centre = if along_columns { camera.cx } else { camera.cy };
+    let Span { first, split, end } = span.unwrap_or(Span {
+        first: 0,
+        split: if along_columns { camera.cx } else { camera.cy },
+        end: major,
+    });
     let mut halves = [Profile::EMPTY, Profile::EMPTY];
-    let pixel = |a: f32, b: f32| if along_columns { (a, b) } else { (b, a) };
     let mut total_pixels = 0u32;
     // Every other column (row) on wide frames: half the reads, and the line's slope still
     // spreads the pixel centres over the bins.
     let step = if major > 200 { 2 } else { 1 };
-    let distorted = camera.k1 != 0.0 || camera.k2 != 0.0;
     let mut previous: Option<f32> = None;
     let pixels = LumaReader::new(frame);
     walk.reaches = (reach_sky, reach_ground);
-    walk.complete = major.div_ceil(step) <= MAX_WALK;
+    // A read of part of the line keeps no walk a longer read could take up.
+    walk.complete = span.is_none() && major.div_ceil(step) <= MAX_WALK;
     walk.len = 0;
     for a in (0..major).step_by(step) {
+        if a < first || a >= end {
+            continue;
+        }
         let mut record = |crossing: Crossing| {
             if let Some(slot) = walk.crossings.get_mut(walk.len) {
                 *slot = crossing;
                 walk.len += 1;
             }
         };
-        let af = a as f32;
-        // Where the line crosses this column (row): pinhole guess, then Newton on the
-        // distorted model.
-        let (x0, y0) = if along_columns {
-            ((af - camera.cx) / camera.fx, 0.0)
-        } else {
-            (0.0, (af - camera.cy) / camera.fy)
-        };
-        let mut b = if along_columns {
-            let y = (line.offset - sc.0 * x0) / sc.1;
-            camera.cy + camera.fy * y
-        } else {
-            let x = (line.offset - sc.1 * y0) / sc.0;
-            camera.cx + camera.fx * x
-        };
-        if distorted && let Some(p) = previous {
-            b = p;
-        }
-        if !b.is_finite() {
-            record(Crossing::NoGuess);
-            continue;
-        }
-        let mut slope = 0.0;
-        let mut failed = None;
-        // D is linear in the pixel without distortion: one step lands on the line.
-        for _ in 0..if distorted { 2 } else { 1 } {
-            let (p0, p1) = (pixel(af, b), pixel(af, b + 1.0));
-            match (
-                distance(camera, &line, sc, p0.0, p0.1),
-                distance(camera, &line, sc, p1.0, p1.1),
-            ) {
-                (Some(d0), Some(d1)) if libm::fabsf(d1 - d0) > 1e-9 => {
-                    slope = d1 - d0;
-                    b -= d0 / slope;
-                }
-                _ => {
-                    failed = Some(Crossing::Lost);
-                    break;
-                }
-            }
-            if !b.is_finite() || b < -reach_sky - 2.0 || b > minor as f32 + reach_sky + 2.0 {
-                failed = Some(Crossing::OutOfReach);
-                break;
-            }
-        }
-        if let Some(failed) = failed {
-            record(failed);
-            previous = None;
-            continue;
-        }
-        previous = Some(b);
-        // The other component of the gradient of D, for the distance across the line.
-        let p = pixel(af, b);
-        let q = pixel(af + 1.0, b);
-        // The crossing's own undistorted point is also what the half's mean point adds.
-        let across = match (
-            camera.undistort_pixel(p.0, p.1),
-            distance(camera, &line, sc, q.0, q.1),
+        let (b, across) = match crossing(
+            camera,
+            line,
+            sc,
+            along_columns,
+            (a, minor),
+            reach_sky,
+            previous,
         ) {
-            (Some(point), Some(d_next)) => {
-                let other = d_next - distance_at(&line, sc, point);
-                let norm = libm::sqrtf(slope * slope + other * other);
-                // Pixels per unit of v (or u) across the line; positive towards the ground.
-                let k = slope / norm;
-                (!(norm.is_nan() || norm <= 0.0) && libm::fabsf(k) >= 0.3).then_some(Across {
-                    k,
-                    norm,
-                    point,
-                })
+            Ok(found) => found,
+            Err(failed) => {
+                record(failed);
+                if failed != Crossing::NoGuess {
+                    previous = None;
+                }
+                continue;
             }
-            _ => None,
         };
+        previous = Some(b);
         record(Crossing::Found { b, across });
         let Some(Across { k, norm, point }) = across else {
             continue;
@@ -709,7 +665,7 @@ fn read_halves(
         let Some((first, last)) = read_range(b, k, (reach_sky, reach_ground), minor) else {
             continue;
         };
-        let half = usize::from(af >= centre);
+        let half = usize::from(a as f32 >= split);
         let Some(profile) = halves.get_mut(half) else {
             continue;
         };
@@ -719,6 +675,84 @@ fn read_halves(
         total_pixels += bin_pixels(profile, &pixels, along_columns, (a, b, k), first..=last);
     }
     (halves, total_pixels)
+}
+
+/// Where `line` crosses column (row) `a` of a frame with `minor` rows (columns): the crossing
+/// `b` and what a read takes from it there (`None` where the distance across the line cannot
+/// be read), or what stopped it (see [`Crossing`]). `previous`: the last column's crossing,
+/// the guess Newton's steps start from on a distorted camera.
+fn crossing(
+    camera: &Camera,
+    line: HorizonLine,
+    sc: (f32, f32),
+    along_columns: bool,
+    (a, minor): (usize, usize),
+    reach_sky: f32,
+    previous: Option<f32>,
+) -> Result<(f32, Option<Across>), Crossing> {
+    let pixel = |a: f32, b: f32| if along_columns { (a, b) } else { (b, a) };
+    let distorted = camera.k1 != 0.0 || camera.k2 != 0.0;
+    let af = a as f32;
+    // Where the line crosses this column (row): pinhole guess, then Newton on the
+    // distorted model.
+    let (x0, y0) = if along_columns {
+        ((af - camera.cx) / camera.fx, 0.0)
+    } else {
+        (0.0, (af - camera.cy) / camera.fy)
+    };
+    let mut b = if along_columns {
+        let y = (line.offset - sc.0 * x0) / sc.1;
+        camera.cy + camera.fy * y
+    } else {
+        let x = (line.offset - sc.1 * y0) / sc.0;
+        camera.cx + camera.fx * x
+    };
+    if distorted && let Some(p) = previous {
+        b = p;
+    }
+    if !b.is_finite() {
+        return Err(Crossing::NoGuess);
+    }
+    let mut slope = 0.0;
+    // D is linear in the pixel without distortion: one step lands on the line.
+    for _ in 0..if distorted { 2 } else { 1 } {
+        let (p0, p1) = (pixel(af, b), pixel(af, b + 1.0));
+        match (
+            distance(camera, &line, sc, p0.0, p0.1),
+            distance(camera, &line, sc, p1.0, p1.1),
+        ) {
+            (Some(d0), Some(d1)) if libm::fabsf(d1 - d0) > 1e-9 => {
+                slope = d1 - d0;
+                b -= d0 / slope;
+            }
+            _ => return Err(Crossing::Lost),
+        }
+        if !b.is_finite() || b < -reach_sky - 2.0 || b > minor as f32 + reach_sky + 2.0 {
+            return Err(Crossing::OutOfReach);
+        }
+    }
+    // The other component of the gradient of D, for the distance across the line.
+    let p = pixel(af, b);
+    let q = pixel(af + 1.0, b);
+    // The crossing's own undistorted point is also what the half's mean point adds.
+    let across = match (
+        camera.undistort_pixel(p.0, p.1),
+        distance(camera, &line, sc, q.0, q.1),
+    ) {
+        (Some(point), Some(d_next)) => {
+            let other = d_next - distance_at(&line, sc, point);
+            let norm = libm::sqrtf(slope * slope + other * other);
+            // Pixels per unit of v (or u) across the line; positive towards the ground.
+            let k = slope / norm;
+            (!(norm.is_nan() || norm <= 0.0) && libm::fabsf(k) >= 0.3).then_some(Across {
+                k,
+                norm,
+                point,
+            })
+        }
+        _ => None,
+    };
+    Ok((b, across))
 }
 
 /// [`read_halves`] of the same line to `reaches` at least as long as those of the read
@@ -806,7 +840,8 @@ fn extend_halves(
 /// few on its ground side). `sky_brighter`: the polarity the Hough stage saw. Returns the
 /// placed line (the input line when the edge is not significant) and what was measured. A
 /// line whose halves find the edge elsewhere is turned to their edges and read again (see the
-/// module's text).
+/// module's text). A line with clipped sky next to its edge on one side of the frame is read
+/// again on the rest of its length (see [`clear_of_glare`]).
 pub(crate) fn place(
     frame: &Frame<'_>,
     camera: &Camera,
@@ -814,11 +849,49 @@ pub(crate) fn place(
     search_px: f32,
     sky_brighter: bool,
 ) -> (HorizonLine, Placement) {
-    let (placed, placement, turn) = place_once(frame, camera, line, search_px, sky_brighter);
+    let (placed, placement) = place_turning(frame, camera, line, search_px, sky_brighter);
+    if placement.clipped_sky < GLARE_CLIPPED_SKY || placement.sharp_clip_end {
+        return (placed, placement);
+    }
+    match clear_of_glare(frame, camera, placed, search_px, sky_brighter) {
+        // The read moves the line; it does not make it more trusted. The sun's bloom is still
+        // at the line: what the whole line measured of the clipping stays, and so does a
+        // contradiction its halves found, and the lesser significance. A bright halo that is
+        // not clipped can still draw the clear run's edge (`aerial` seed 141 `glare`, frames
+        // 0–1: the halves of the run agree on a line 5° of roll out), and those lines were
+        // under the gate only for their halves' contradiction.
+        Some((clear, clear_placement)) => (
+            clear,
+            Placement {
+                clipped_sky: placement.clipped_sky,
+                sharp_clip_end: placement.sharp_clip_end,
+                clear_of_glare: true,
+                halves: if placement.halves == Halves::Contradicted {
+                    Halves::Contradicted
+                } else {
+                    clear_placement.halves
+                },
+                significance: clear_placement.significance.min(placement.significance),
+                ..clear_placement
+            },
+        ),
+        None => (placed, placement),
+    }
+}
+
+/// [`place`] before the look clear of the glare: one read, and one turn at most.
+fn place_turning(
+    frame: &Frame<'_>,
+    camera: &Camera,
+    line: HorizonLine,
+    search_px: f32,
+    sky_brighter: bool,
+) -> (HorizonLine, Placement) {
+    let (placed, placement, turn) = place_once(frame, camera, line, search_px, sky_brighter, None);
     if let Some(turned) = turn {
         // One turn at most: the second read's own turn, if any, is not followed.
         let (again, again_placement, _) =
-            place_once(frame, camera, turned, search_px, sky_brighter);
+            place_once(frame, camera, turned, search_px, sky_brighter, None);
         if again_placement.halves == Halves::Confirmed
             && again_placement.significance > placement.significance
             && again_placement.significance >= TURNED_SIGNIFICANCE
@@ -835,6 +908,143 @@ pub(crate) fn place(
     (placed, placement)
 }
 
+/// Least share of the sky next to a placed line's edge that is clipped for the line to be
+/// read again clear of the glare ([`clear_of_glare`]).
+const GLARE_CLIPPED_SKY: f32 = 0.05;
+/// Least share of the columns (rows) a line crosses that the run clear of clipping must hold,
+/// and least columns in it: each half of it gives one point of the line.
+const GLARE_CLEAR_SHARE: f32 = 0.35;
+const GLARE_CLEAR_COLUMNS: usize = 24;
+/// Pixels across the line on the sky side of a crossing that a column's clipping is judged
+/// by: the window the placement's `clipped_sky` counts (within 4 px of the edge).
+const GLARE_LOOK_PX: [f32; 4] = [1.0, 2.0, 3.0, 4.0];
+/// Reads of the clear run at most: the first, and a turn to its halves' edges (and one more).
+const GLARE_READS: usize = 3;
+
+/// The line read only where the sky next to it is clear of clipping. The sun low in the
+/// frame blooms over the horizon on its side: the sky there is clipped down to where the
+/// bloom fades on the ground, below the horizon, and that edge (the strongest in the frame)
+/// drags the Hough line's end down with it, a few degrees of roll towards the sun (`aerial`
+/// seed 141 `glare`: 17 of 40 frames 2.3–6.3° of roll out, the edge where the sky is not
+/// clipped on the horizon to the pixel). The longest run of columns whose sky is not
+/// clipped is read as two halves of its own; their edges must agree with the line through
+/// them ([`Halves::Confirmed`]) clearly ([`TURNED_SIGNIFICANCE`]), after at most two turns to
+/// them. `None` where no such run holds enough of the line or its halves do not agree.
+fn clear_of_glare(
+    frame: &Frame<'_>,
+    camera: &Camera,
+    placed: HorizonLine,
+    search_px: f32,
+    sky_brighter: bool,
+) -> Option<(HorizonLine, Placement)> {
+    let mut line = placed;
+    for _ in 0..GLARE_READS {
+        let span = unclipped_span(frame, camera, line, search_px)?;
+        let (again, placement, turn) =
+            place_once(frame, camera, line, search_px, sky_brighter, Some(span));
+        if placement.halves == Halves::Confirmed {
+            return (placement.significance >= TURNED_SIGNIFICANCE).then_some((again, placement));
+        }
+        line = turn?;
+    }
+    None
+}
+
+/// The longest run of the columns (rows) `line` crosses whose sky within 4 px of it
+/// ([`GLARE_LOOK_PX`]) holds no clipped pixel, split in two halves of as many columns;
+/// `None` where no column is clipped (the whole read is the same) or the run is short.
+fn unclipped_span(
+    frame: &Frame<'_>,
+    camera: &Camera,
+    line: HorizonLine,
+    search_px: f32,
+) -> Option<Span> {
+    let sc = (
+        libm::sinf(line.camera_roll_rad),
+        libm::cosf(line.camera_roll_rad),
+    );
+    let along_columns = libm::fabsf(sc.1 * camera.fx) >= libm::fabsf(sc.0 * camera.fy);
+    let (w, h) = (frame.width(), frame.height());
+    let (major, minor) = if along_columns { (w, h) } else { (h, w) };
+    let step = if major > 200 { 2 } else { 1 };
+    let pixels = LumaReader::new(frame);
+    let (mut crossed, mut clipped) = (0usize, 0usize);
+    // The run going on (first and last column, columns) and the longest so far.
+    let mut run: Option<(usize, usize, usize)> = None;
+    let mut best: Option<(usize, usize, usize)> = None;
+    let mut previous = None;
+    for a in (0..major).step_by(step) {
+        let (b, k) = match crossing(
+            camera,
+            line,
+            sc,
+            along_columns,
+            (a, minor),
+            search_px,
+            previous,
+        ) {
+            Ok((b, Some(Across { k, .. }))) => {
+                previous = Some(b);
+                (b, k)
+            }
+            Ok((b, None)) => {
+                previous = Some(b);
+                continue;
+            }
+            Err(failed) => {
+                if failed != Crossing::NoGuess {
+                    previous = None;
+                }
+                continue;
+            }
+        };
+        let column = pixels.line(along_columns, a);
+        // The sky's pixels next to the crossing (`d = (c − b)·k` px across the line,
+        // negative on the sky side), those inside the frame.
+        let (mut seen, mut is_clipped) = (false, false);
+        for px in GLARE_LOOK_PX {
+            let c = libm::roundf(b - px / k);
+            if c >= 0.0 && c < minor as f32 {
+                seen = true;
+                is_clipped |= column.at(c as usize) >= 250;
+            }
+        }
+        if !seen {
+            continue;
+        }
+        crossed += 1;
+        if is_clipped {
+            clipped += 1;
+            run = None;
+            continue;
+        }
+        let now = match run {
+            Some((first, _, n)) => (first, a, n + 1),
+            None => (a, a, 1),
+        };
+        run = Some(now);
+        if best.is_none_or(|(_, _, n)| now.2 > n) {
+            best = Some(now);
+        }
+    }
+    let (first, last, n) = best?;
+    (clipped > 0 && n >= GLARE_CLEAR_COLUMNS && n as f32 >= GLARE_CLEAR_SHARE * crossed as f32)
+        .then_some(Span {
+            first,
+            split: 0.5 * (first + last) as f32,
+            end: last + 1,
+        })
+}
+
+/// The columns (rows) of the frame a read takes, `first..end`, and where its halves part
+/// (the left half is under `split`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Span {
+    first: usize,
+    split: f32,
+    end: usize,
+}
+
 /// [`place`] without the turn: the placed line, what was measured, and the line through the
 /// halves' edges when they find the edge off the line by a turn worth reading again.
 fn place_once(
@@ -843,6 +1053,7 @@ fn place_once(
     line: HorizonLine,
     search_px: f32,
     sky_brighter: bool,
+    span: Option<Span>,
 ) -> (HorizonLine, Placement, Option<HorizonLine>) {
     let sc = (
         libm::sinf(line.camera_roll_rad),
@@ -851,7 +1062,14 @@ fn place_once(
     // Walk along the image axis the line is closer to: columns for a flat line.
     let along_columns = libm::fabsf(sc.1 * camera.fx) >= libm::fabsf(sc.0 * camera.fy);
     let search_px = search_px.clamp(2.0, HALF_BINS as f32 * BIN_PX - 3.0);
-    let ground_px = (0.5 * search_px).max(3.0);
+    // A read clear of the glare looks as far on the ground side as on the sky side: the
+    // bloom pulls the line's end down on the sun's side, so the line pivots and its other
+    // end lies above the horizon.
+    let ground_px = if span.is_some() {
+        search_px
+    } else {
+        (0.5 * search_px).max(3.0)
+    };
     // The top of a hazy transition is looked for only under a sky brighter than the ground:
     // the airlight a hazy ground comes out of is at most as bright as the sky at the horizon,
     // and the ground is darker still. The other polarity, walked out this far, climbs the
@@ -891,7 +1109,7 @@ fn place_once(
         line,
         sc,
         along_columns,
-        short_reaches,
+        (short_reaches, span),
         &mut walk,
     );
     let mut read = find_in(short, search_px);
@@ -905,7 +1123,17 @@ fn place_once(
             &(read.0, read.1),
             reaches,
         )
-        .unwrap_or_else(|| read_halves(frame, camera, line, sc, along_columns, reaches, &mut walk));
+        .unwrap_or_else(|| {
+            read_halves(
+                frame,
+                camera,
+                line,
+                sc,
+                along_columns,
+                (reaches, span),
+                &mut walk,
+            )
+        });
         read = find_in(long, transition_px);
     }
     let (halves, total_pixels, both, whole, read_px) = read;
@@ -1039,7 +1267,7 @@ mod tests {
                                 line,
                                 sc,
                                 along_columns,
-                                short,
+                                (short, None),
                                 &mut walk,
                             );
                             let Some(from_walk) =
@@ -1055,7 +1283,7 @@ mod tests {
                                 line,
                                 sc,
                                 along_columns,
-                                long,
+                                (long, None),
                                 &mut fresh_walk,
                             );
                             assert_eq!(
@@ -1093,7 +1321,7 @@ mod tests {
             line,
             (0.0, 1.0),
             true,
-            (10.0, 5.0),
+            ((10.0, 5.0), None),
             &mut walk,
         );
         assert!(read.1 > 0);
@@ -1102,5 +1330,64 @@ mod tests {
         assert!(extend_halves(&frame, &camera, true, &walk, &read, (10.0, 4.0)).is_none());
         walk.complete = false;
         assert!(extend_halves(&frame, &camera, true, &walk, &read, (20.0, 5.0)).is_none());
+    }
+
+    /// The line through two pixels, the ground below it.
+    fn through(camera: &Camera, (u0, v0): (f32, f32), (u1, v1): (f32, f32)) -> HorizonLine {
+        let p = |u: f32, v: f32| ((u - camera.cx) / camera.fx, (v - camera.cy) / camera.fy);
+        let (a, b) = (p(u0, v0), p(u1, v1));
+        let (dx, dy) = (b.0 - a.0, b.1 - a.1);
+        let n = libm::sqrtf(dx * dx + dy * dy);
+        let (nx, ny) = (-dy / n, dx / n);
+        let (nx, ny) = if ny < 0.0 { (-nx, -ny) } else { (nx, ny) };
+        HorizonLine {
+            camera_roll_rad: libm::atan2f(nx, ny),
+            offset: nx * a.0 + ny * a.1,
+        }
+    }
+
+    /// A level horizon on row 240 of a 640×480 frame, a faint step (170 over 155), with the
+    /// sun's bloom clipping the frame's left third down to a slanted end under the horizon
+    /// (30 px under it at the left edge, on it at column 200). The Hough line given is pulled
+    /// down at the left, as the bloom's end pulls it: 1.9° of roll out. Read where the sky is
+    /// clear, the line is the horizon; the same frame without the bloom reads the same.
+    #[test]
+    fn a_line_pulled_by_the_suns_bloom_is_read_where_the_sky_is_clear() {
+        let (w, h) = (640usize, 480usize);
+        let camera = Camera::ideal(w as u32, h as u32, 60f32.to_radians());
+        let render = |bloom: bool| -> std::vec::Vec<u8> {
+            (0..w * h)
+                .map(|i| {
+                    let (u, v) = ((i % w) as f32, (i / w) as f32);
+                    let clip_end = 240.0 + 30.0 * (200.0 - u) / 200.0;
+                    if bloom && u < 200.0 && v < clip_end {
+                        255
+                    } else if v < 240.0 {
+                        170
+                    } else {
+                        155
+                    }
+                })
+                .collect()
+        };
+        let pulled = through(&camera, (0.0, 261.0), (639.0, 240.0 - 0.034 * 439.0));
+        let truth = through(&camera, (0.0, 239.5), (639.0, 239.5));
+        let search_px = 15.0;
+        for bloom in [true, false] {
+            let data = render(bloom);
+            let frame = Frame::grey(w, h, &data).expect("frame");
+            let (placed, placement) = place(&frame, &camera, pulled, search_px, true);
+            let roll_error = (placed.camera_roll_rad - truth.camera_roll_rad).to_degrees();
+            let offset_error_px = (placed.offset - truth.offset) * camera.fy;
+            assert!(
+                roll_error.abs() < 0.2 && offset_error_px.abs() < 1.0,
+                "bloom {bloom}: roll {roll_error:.2}° and {offset_error_px:.2} px out ({placement:?})"
+            );
+            assert_eq!(placement.clear_of_glare, bloom, "{placement:?}");
+            if bloom {
+                // The bloom's clipping stays in what was measured, for the confidence.
+                assert!(placement.clipped_sky >= GLARE_CLIPPED_SKY, "{placement:?}");
+            }
+        }
     }
 }
