@@ -620,26 +620,84 @@ fn read_halves(
     });
     let mut halves = [Profile::EMPTY, Profile::EMPTY];
     let mut total_pixels = 0u32;
-    // Every other column (row) on wide frames: half the reads, and the line's slope still
-    // spreads the pixel centres over the bins.
-    let step = if major > 200 { 2 } else { 1 };
-    let mut previous: Option<f32> = None;
+    let step = column_step(major);
     let pixels = LumaReader::new(frame);
     walk.reaches = (reach_sky, reach_ground);
     // A read of part of the line keeps no walk a longer read could take up.
     walk.complete = span.is_none() && major.div_ceil(step) <= MAX_WALK;
     walk.len = 0;
-    for a in (0..major).step_by(step) {
-        if a < first || a >= end {
-            continue;
-        }
-        let mut record = |crossing: Crossing| {
+    let columns = (first..end).step_by(step);
+    walk_crossings(
+        camera,
+        line,
+        (sc, along_columns),
+        (columns, minor),
+        reach_sky,
+        |a, found| {
+            let crossing = match found {
+                Ok((b, across)) => Crossing::Found { b, across },
+                Err(failed) => failed,
+            };
             if let Some(slot) = walk.crossings.get_mut(walk.len) {
                 *slot = crossing;
                 walk.len += 1;
             }
-        };
-        let (b, across) = match crossing(
+            let Crossing::Found {
+                b,
+                across: Some(Across { k, norm, point }),
+            } = crossing
+            else {
+                return;
+            };
+            let Some((first, last)) = read_range(b, k, (reach_sky, reach_ground), minor) else {
+                return;
+            };
+            let half = usize::from(a as f32 >= split);
+            let Some(profile) = halves.get_mut(half) else {
+                return;
+            };
+            profile.point = (profile.point.0 + point.0, profile.point.1 + point.1);
+            profile.gradient += norm;
+            profile.columns += 1;
+            total_pixels += bin_pixels(profile, &pixels, along_columns, (a, b, k), first..=last);
+        },
+    );
+    (halves, total_pixels)
+}
+
+/// Every other column (row) on wide frames: half the reads, and the line's slope still
+/// spreads the pixel centres over the bins.
+fn column_step(major: usize) -> usize {
+    if major > 200 { 2 } else { 1 }
+}
+
+/// The line's direction (`sin`, `cos` of its roll) and whether a read walks along the
+/// columns (the image axis the line is closer to: columns for a flat line).
+fn walk_axis(camera: &Camera, line: HorizonLine) -> ((f32, f32), bool) {
+    let sc = (
+        libm::sinf(line.camera_roll_rad),
+        libm::cosf(line.camera_roll_rad),
+    );
+    (
+        sc,
+        libm::fabsf(sc.1 * camera.fx) >= libm::fabsf(sc.0 * camera.fy),
+    )
+}
+
+/// Calls `visit(a, found)` with where `line` crosses each column (row) `a` of `columns` (see
+/// [`crossing`]), each column's guess the last crossing found: a crossing that was lost or
+/// left the reach leaves the next column to the pinhole guess.
+fn walk_crossings(
+    camera: &Camera,
+    line: HorizonLine,
+    (sc, along_columns): ((f32, f32), bool),
+    (columns, minor): (core::iter::StepBy<core::ops::Range<usize>>, usize),
+    reach_sky: f32,
+    mut visit: impl FnMut(usize, Result<(f32, Option<Across>), Crossing>),
+) {
+    let mut previous: Option<f32> = None;
+    for a in columns {
+        let found = crossing(
             camera,
             line,
             sc,
@@ -647,34 +705,14 @@ fn read_halves(
             (a, minor),
             reach_sky,
             previous,
-        ) {
-            Ok(found) => found,
-            Err(failed) => {
-                record(failed);
-                if failed != Crossing::NoGuess {
-                    previous = None;
-                }
-                continue;
-            }
-        };
-        previous = Some(b);
-        record(Crossing::Found { b, across });
-        let Some(Across { k, norm, point }) = across else {
-            continue;
-        };
-        let Some((first, last)) = read_range(b, k, (reach_sky, reach_ground), minor) else {
-            continue;
-        };
-        let half = usize::from(a as f32 >= split);
-        let Some(profile) = halves.get_mut(half) else {
-            continue;
-        };
-        profile.point = (profile.point.0 + point.0, profile.point.1 + point.1);
-        profile.gradient += norm;
-        profile.columns += 1;
-        total_pixels += bin_pixels(profile, &pixels, along_columns, (a, b, k), first..=last);
+        );
+        match found {
+            Ok((b, _)) => previous = Some(b),
+            Err(Crossing::NoGuess) => {}
+            Err(_) => previous = None,
+        }
+        visit(a, found);
     }
-    (halves, total_pixels)
 }
 
 /// Where `line` crosses column (row) `a` of a frame with `minor` rows (columns): the crossing
@@ -780,7 +818,7 @@ fn extend_halves(
     let (w, h) = (frame.width(), frame.height());
     let (major, minor) = if along_columns { (w, h) } else { (h, w) };
     let centre = if along_columns { camera.cx } else { camera.cy };
-    let step = if major > 200 { 2 } else { 1 };
+    let step = column_step(major);
     let pixels = LumaReader::new(frame);
     let (mut halves, mut total_pixels) = (read.0, read.1);
     for profile in &mut halves {
@@ -959,74 +997,55 @@ fn unclipped_span(
     line: HorizonLine,
     search_px: f32,
 ) -> Option<Span> {
-    let sc = (
-        libm::sinf(line.camera_roll_rad),
-        libm::cosf(line.camera_roll_rad),
-    );
-    let along_columns = libm::fabsf(sc.1 * camera.fx) >= libm::fabsf(sc.0 * camera.fy);
+    let (sc, along_columns) = walk_axis(camera, line);
     let (w, h) = (frame.width(), frame.height());
     let (major, minor) = if along_columns { (w, h) } else { (h, w) };
-    let step = if major > 200 { 2 } else { 1 };
     let pixels = LumaReader::new(frame);
     let (mut crossed, mut clipped) = (0usize, 0usize);
     // The run going on (first and last column, columns) and the longest so far.
     let mut run: Option<(usize, usize, usize)> = None;
     let mut best: Option<(usize, usize, usize)> = None;
-    let mut previous = None;
-    for a in (0..major).step_by(step) {
-        let (b, k) = match crossing(
-            camera,
-            line,
-            sc,
-            along_columns,
-            (a, minor),
-            search_px,
-            previous,
-        ) {
-            Ok((b, Some(Across { k, .. }))) => {
-                previous = Some(b);
-                (b, k)
-            }
-            Ok((b, None)) => {
-                previous = Some(b);
-                continue;
-            }
-            Err(failed) => {
-                if failed != Crossing::NoGuess {
-                    previous = None;
+    let columns = (0..major).step_by(column_step(major));
+    walk_crossings(
+        camera,
+        line,
+        (sc, along_columns),
+        (columns, minor),
+        search_px,
+        |a, found| {
+            let Ok((b, Some(Across { k, .. }))) = found else {
+                return;
+            };
+            let column = pixels.line(along_columns, a);
+            // The sky's pixels next to the crossing (`d = (c − b)·k` px across the line,
+            // negative on the sky side), those inside the frame.
+            let (mut seen, mut is_clipped) = (false, false);
+            for px in GLARE_LOOK_PX {
+                let c = libm::roundf(b - px / k);
+                if c >= 0.0 && c < minor as f32 {
+                    seen = true;
+                    is_clipped |= column.at(c as usize) >= 250;
                 }
-                continue;
             }
-        };
-        let column = pixels.line(along_columns, a);
-        // The sky's pixels next to the crossing (`d = (c − b)·k` px across the line,
-        // negative on the sky side), those inside the frame.
-        let (mut seen, mut is_clipped) = (false, false);
-        for px in GLARE_LOOK_PX {
-            let c = libm::roundf(b - px / k);
-            if c >= 0.0 && c < minor as f32 {
-                seen = true;
-                is_clipped |= column.at(c as usize) >= 250;
+            if !seen {
+                return;
             }
-        }
-        if !seen {
-            continue;
-        }
-        crossed += 1;
-        if is_clipped {
-            clipped += 1;
-            run = None;
-            continue;
-        }
-        let now = match run {
-            Some((first, _, n)) => (first, a, n + 1),
-            None => (a, a, 1),
-        };
-        run = Some(now);
-        if best.is_none_or(|(_, _, n)| now.2 > n) {
-            best = Some(now);
-        }
-    }
+            crossed += 1;
+            if is_clipped {
+                clipped += 1;
+                run = None;
+                return;
+            }
+            let now = match run {
+                Some((first, _, n)) => (first, a, n + 1),
+                None => (a, a, 1),
+            };
+            run = Some(now);
+            if best.is_none_or(|(_, _, n)| now.2 > n) {
+                best = Some(now);
+            }
+        },
+    );
     let (first, last, n) = best?;
     (clipped > 0 && n >= GLARE_CLEAR_COLUMNS && n as f32 >= GLARE_CLEAR_SHARE * crossed as f32)
         .then_some(Span {
@@ -1037,7 +1056,8 @@ fn unclipped_span(
 }
 
 /// The columns (rows) of the frame a read takes, `first..end`, and where its halves part
-/// (the left half is under `split`).
+/// (the left half is under `split`). `first` is a column the whole line's walk reads (a
+/// multiple of [`column_step`]), so a read of the span takes the whole read's columns in it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 struct Span {
     first: usize,
@@ -1055,12 +1075,7 @@ fn place_once(
     sky_brighter: bool,
     span: Option<Span>,
 ) -> (HorizonLine, Placement, Option<HorizonLine>) {
-    let sc = (
-        libm::sinf(line.camera_roll_rad),
-        libm::cosf(line.camera_roll_rad),
-    );
-    // Walk along the image axis the line is closer to: columns for a flat line.
-    let along_columns = libm::fabsf(sc.1 * camera.fx) >= libm::fabsf(sc.0 * camera.fy);
+    let (sc, along_columns) = walk_axis(camera, line);
     let search_px = search_px.clamp(2.0, HALF_BINS as f32 * BIN_PX - 3.0);
     // A read clear of the glare looks as far on the ground side as on the sky side: the
     // bloom pulls the line's end down on the sun's side, so the line pivots and its other
