@@ -277,8 +277,18 @@ pub(crate) fn smooth_tiles(grey: &mut [u8], geo: Working, tile: usize) {
 
 /// [`smooth_tiles`] along one line of `grey`: `len` pixels from `start`, `step` apart, each
 /// replaced by its kernel's weighted mean (the line's end pixels repeated beyond it).
+///
+/// A running sum: the kernel's inside (weight 2) moves by one pixel in, one out, and its two
+/// ends (weight 1 or 2) are read from a ring of the originals about the pixel, which is
+/// written over as it goes. The sums are whole numbers, so the means are those of the
+/// kernel summed pixel by pixel (`tests::smooth_line_pixel_by_pixel`), at a fifth of the
+/// adds for a 16-pixel tile at scale 2: summing each kernel took a third of the detector on
+/// `aerial`'s `transmission` frames at 320 px.
 fn smooth_line(grey: &mut [u8], (start, step, len): (usize, usize, usize), taps: usize) {
     let half = taps / 2;
+    if half == 0 || half > MAX_HALF_TAPS {
+        return;
+    }
     // Weights doubled: 2 inside, 1 at the ends of an even kernel; they sum to 2·taps.
     let end_weight = if taps % 2 == 0 { 1 } else { 2 };
     let total = 2 * taps as u32;
@@ -286,35 +296,50 @@ fn smooth_line(grey: &mut [u8], (start, step, len): (usize, usize, usize), taps:
     let Some(&first) = grey.get(start) else {
         return;
     };
-    // The originals of the `half` pixels before the current one (already overwritten).
-    let mut before = [first; MAX_HALF_TAPS];
-    for i in 0..len {
-        let original = grey.get(index(i)).copied().unwrap_or(first);
-        let mut sum = 2 * u32::from(original);
-        for o in 1..=half {
-            let weight = if o == half { end_weight } else { 2 };
-            let earlier = if o <= i {
-                before
-                    .get((i - o) % MAX_HALF_TAPS)
-                    .copied()
-                    .unwrap_or(first)
-            } else {
-                first
-            };
-            let later = grey
-                .get(index((i + o).min(len - 1)))
-                .copied()
-                .unwrap_or(original);
-            sum += weight * (u32::from(earlier) + u32::from(later));
+    let last = grey
+        .get(index(len.saturating_sub(1)))
+        .copied()
+        .unwrap_or(first);
+    // The original of the line's pixel `j` (the ends repeated past them). Pixels ahead of the
+    // one being written still hold their originals; the last one is read before the loop.
+    let ahead = |grey: &[u8], j: usize| {
+        if j + 1 >= len {
+            last
+        } else {
+            grey.get(index(j)).copied().unwrap_or(first)
         }
-        if let Some(slot) = before.get_mut(i % MAX_HALF_TAPS) {
-            *slot = original;
+    };
+    // Originals from `i − half` to `i + half + 1`, at `j` modulo the ring (`j` offset by
+    // `RING` so that those before the line's start index it too).
+    let mut ring = [first; RING];
+    let slot = |j: usize| (j + RING) % RING;
+    for j in 0..=half {
+        if let Some(cell) = ring.get_mut(slot(j)) {
+            *cell = ahead(grey, j);
+        }
+    }
+    let at = |ring: &[u8; RING], j: usize| u32::from(ring.get(slot(j)).copied().unwrap_or(first));
+    // The inside, `i − half + 1 ..= i + half − 1`, for `i` = 0.
+    let mut inside: u32 = (RING + 1 - half..=RING + half - 1)
+        .map(|j| at(&ring, j))
+        .sum();
+    for i in 0..len {
+        let (behind, front) = (at(&ring, RING + i - half), at(&ring, i + half));
+        let sum = 2 * inside + end_weight * (behind + front);
+        if let Some(cell) = ring.get_mut(slot(i + half + 1)) {
+            *cell = ahead(grey, i + half + 1);
         }
         if let Some(p) = grey.get_mut(index(i)) {
             *p = ((sum + total / 2) / total) as u8;
         }
+        inside = inside + front - at(&ring, RING + i + 1 - half);
     }
 }
+
+/// Originals [`smooth_line`] keeps about its pixel: `2·half + 2` of them, a power of two
+/// over that for the widest kernel.
+const RING: usize = 32;
+const _: () = assert!(RING >= 2 * MAX_HALF_TAPS + 2);
 
 #[cfg(test)]
 mod tests {
@@ -383,6 +408,55 @@ mod tests {
             grid(&Frame::grey(320, 240, &grey).expect("fits")).tile,
             BLOCK
         );
+    }
+
+    /// [`smooth_line`] as it was written first: each pixel's kernel summed on its own.
+    fn smooth_line_pixel_by_pixel(
+        grey: &mut [u8],
+        (start, step, len): (usize, usize, usize),
+        taps: usize,
+    ) {
+        let half = taps / 2;
+        let end_weight = if taps % 2 == 0 { 1 } else { 2 };
+        let total = 2 * taps as u32;
+        let index = |i: usize| start + i * step;
+        let original: Vec<u8> = (0..len).map(|i| grey[index(i)]).collect();
+        for i in 0..len {
+            let mut sum = 2 * u32::from(original[i]);
+            for o in 1..=half {
+                let weight = if o == half { end_weight } else { 2 };
+                let earlier = original[i.saturating_sub(o)];
+                let later = original[(i + o).min(len - 1)];
+                sum += weight * (u32::from(earlier) + u32::from(later));
+            }
+            grey[index(i)] = ((sum + total / 2) / total) as u8;
+        }
+    }
+
+    #[test]
+    fn a_running_sum_smooths_a_line_as_each_kernel_summed_on_its_own() {
+        let mut seed = 0x2545_f491u32;
+        let mut next = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 17;
+            seed ^= seed << 5;
+            seed
+        };
+        for taps in 2..=2 * MAX_HALF_TAPS + 1 {
+            for len in 1..40 {
+                for (start, step) in [(0, 1), (3, 1), (2, 5)] {
+                    let size = start + step * (len - 1) + 1 + 4;
+                    let line: Vec<u8> = (0..size).map(|_| next() as u8).collect();
+                    let (mut fast, mut slow) = (line.clone(), line.clone());
+                    smooth_line(&mut fast, (start, step, len), taps);
+                    smooth_line_pixel_by_pixel(&mut slow, (start, step, len), taps);
+                    assert_eq!(
+                        fast, slow,
+                        "taps {taps}, len {len}, start {start}, step {step}"
+                    );
+                }
+            }
+        }
     }
 
     #[test]
