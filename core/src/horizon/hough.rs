@@ -411,6 +411,8 @@ pub(crate) struct Separation {
     /// Share of the samples' variance (luma and colour) explained by the two sides, in [0, 1]
     /// (Otsu's criterion for a line instead of a threshold).
     pub explained: f32,
+    /// Share of the colour's (blue minus red) variance alone explained by the two sides.
+    pub colour_explained: f32,
     /// Evidence, cue by cue, that the brighter side (the normal's) is the sky.
     pub cues: SkyCues,
 }
@@ -547,6 +549,7 @@ pub(crate) fn separation_of(
         ((between_luma + between_chroma) / (luma_var + chroma_var + 1.0)).clamp(0.0, 1.0);
     Separation {
         explained,
+        colour_explained: (between_chroma / (chroma_var + 1.0)).clamp(0.0, 1.0),
         cues: SkyCues {
             brighter: (lb - ld) / (libm::sqrtf(luma_var) + 1.0),
             bluer: (cb - cd) / (libm::sqrtf(chroma_var) + 4.0),

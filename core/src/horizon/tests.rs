@@ -1743,3 +1743,68 @@ fn a_hazy_band_over_a_turned_ground_edge_is_climbed_to_its_top() {
         assert_attitude(h, roll, pitch, 2.0);
     }
 }
+
+/// A sun's glow over a hazy horizon, where no edge line splits the frame: the region search
+/// by luma and colour splits the frame along the glow, the bright half from the rest, but the
+/// blue sky and the grey ground split its colour at the horizon, and the split by colour
+/// alone replaces it (`aerial` seed 140 `glare`, see `colour_split_over`).
+#[test]
+fn a_split_along_the_suns_glow_gives_way_to_the_split_by_colour() {
+    // Samples as the detector takes them: a grid over a 60° camera's normalised plane.
+    let (half_width, half_height) = (libm::tanf(30.0 * DEG), 0.75 * libm::tanf(30.0 * DEG));
+    for (roll, pitch, sun_x, sun_y) in [
+        (5.0f32, 2.0f32, -0.45f32, -0.15f32),
+        (-12.0, -3.0, 0.4, -0.2),
+        (20.0, 0.0, -0.4, 0.05),
+    ] {
+        let (s, c, o) = (
+            libm::sinf(roll * DEG),
+            libm::cosf(roll * DEG),
+            libm::tanf(pitch * DEG),
+        );
+        let samples: Vec<Sample> = (0..48 * 64)
+            .map(|i| {
+                let x = half_width * ((i % 64) as f32 / 31.5 - 1.0);
+                let y = half_height * ((i / 64) as f32 / 23.5 - 1.0);
+                let d = s * x + c * y - o;
+                let r2 = (x - sun_x) * (x - sun_x) + (y - sun_y) * (y - sun_y);
+                let glow = libm::expf(-r2 / 0.25);
+                let (luma, chroma) = if d < 0.0 {
+                    (150.0 + 95.0 * glow, 40.0 - 15.0 * glow)
+                } else {
+                    (148.0 + 95.0 * glow - 60.0 * d, 0.0)
+                };
+                Sample {
+                    x,
+                    y,
+                    luma: libm::roundf(luma),
+                    chroma,
+                    texture: 0.0,
+                }
+            })
+            .collect();
+        let extent = libm::hypotf(half_width, half_height);
+        // The line's roll and offset, whichever way its normal points.
+        let attitude = |line: Line| {
+            let (angle, rho) = if libm::cosf(line.angle - roll * DEG) >= 0.0 {
+                (line.angle, line.rho)
+            } else {
+                (line.angle + PI, -line.rho)
+            };
+            (wrap_angle(angle) / DEG - roll, rho - o)
+        };
+        let by_region = region::search(&samples, extent).expect("a split");
+        let (region_roll, _) = attitude(by_region);
+        assert!(
+            region_roll.abs() > 5.0,
+            "roll {roll}: the region split should run along the glow, {region_roll}° off"
+        );
+        let by_colour =
+            colour_split_over(&samples, extent, by_region, 0.005).expect("the colour's split");
+        let (colour_roll, colour_offset) = attitude(by_colour);
+        assert!(
+            colour_roll.abs() < 1.0 && colour_offset.abs() < 0.01,
+            "roll {roll}: the colour's split is {colour_roll}° and {colour_offset} off"
+        );
+    }
+}
