@@ -1041,23 +1041,21 @@ impl HorizonDetector {
         // direction may be a ground edge turned from the horizon under a band of hazy far
         // ground (`aerial` seed 140 `sensor-noise`: 5–8° turned, 5° under it, trusted on 24
         // frames of 40): the horizon is looked for as a top step across lines turned further.
+        // The samples as read last (again, after destriping).
+        let late_context = LineContext {
+            camera: &camera,
+            knots: &self.knots,
+            geo,
+            rho,
+            edges: edge_points,
+            samples,
+            max_radius2,
+            bands: &bands,
+            max_angle_difference,
+        };
         if on_ramp
             && !climbed
-            && let Some(upper) = turned_top_over_ramp(
-                &LineContext {
-                    camera: &camera,
-                    knots: &self.knots,
-                    geo,
-                    rho,
-                    edges: edge_points,
-                    samples,
-                    max_radius2,
-                    bands: &bands,
-                    max_angle_difference,
-                },
-                ws.grey,
-                &chosen,
-            )
+            && let Some(upper) = turned_top_over_ramp(&late_context, ws.grey, &chosen)
         {
             // `on_ramp` stays: where the line was at the foot of its ramp (more of the rise
             // above it than across it), the step found above may be dusk haze's noise
@@ -1158,7 +1156,20 @@ impl HorizonDetector {
         // 40 past the gate on seeds 1 and 2). Where more of the rise is above the line than
         // across it, the line is not trusted; a horizon's own step is larger than what the
         // sky above it adds.
-        if on_ramp && profile.at_foot_of_ramp(RAMP_EXTENT) {
+        // So is a line under a rise as long whose band above is as little blue as ground
+        // ([`GROUND_BLUE_SHARE`]): the band of hazy far ground over a sharp ground edge, which
+        // rises to the horizon by less than the edge steps (`aerial` seed 140 `mixed`: the
+        // line 4–6° under the horizon, trusted at 0.3–0.8 on 13 frames). Over a horizon, the
+        // band is the sky's glow, bluer than that.
+        // (`on_ramp` asks for a sky brighter than the ground: the sky is on the normal's side.)
+        let under_ground_coloured_band = || {
+            profile
+                .rise_above()
+                .is_some_and(|rise| rise.reaches(RAMP_EXTENT))
+                && band_blue_share(&late_context, chosen.line, 1.0)
+                    .is_some_and(|share| share <= GROUND_BLUE_SHARE)
+        };
+        if on_ramp && (profile.at_foot_of_ramp(RAMP_EXTENT) || under_ground_coloured_band()) {
             confidence *= RAMP_CONFIDENCE;
         }
         // A ridge's top is placed by a profile's brightest bin at a turn searched in steps

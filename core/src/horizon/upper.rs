@@ -321,6 +321,29 @@ fn each_pixel(
     }
 }
 
+/// The profile's rise above a line's own transition ([`Profile::rise_above`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct RiseAbove {
+    /// How far above the line the rise ends (normalised units).
+    pub reach: f32,
+    /// Levels it rises by.
+    pub rise: f32,
+    /// Levels the profile rose by across the line itself.
+    pub across: f32,
+}
+
+impl RiseAbove {
+    /// A rise of at least [`MIN_STEP_LEVELS`] that reaches `extent` above the line.
+    pub(crate) fn reaches(&self, extent: f32) -> bool {
+        self.rise >= MIN_STEP_LEVELS && self.reach >= extent
+    }
+
+    /// More rise above the line than across it.
+    pub(crate) fn exceeds_the_step(&self) -> bool {
+        self.rise >= self.across
+    }
+}
+
 /// Bins either side of a ridge's top its prominence is measured at.
 const RIDGE_FLANK: usize = 4;
 
@@ -526,26 +549,32 @@ impl Profile {
             .is_some_and(|(_, rise)| rise >= MIN_STEP_LEVELS)
     }
 
-    /// Whether the line lies at the foot of a ramp rather than on a step: above the line's
-    /// own transition the profile rises by more than it rose across the line (from [`BELOW`]
-    /// bins under it to [`CLEAR_OF_CHOSEN`]` / 2` above it), in a transition (see
-    /// [`Profile::transition_from`]) that reaches at least `extent` (normalised units) above
-    /// the line. Under haze in dim light the ground's ramp up to the airlight is the
-    /// steepest part of the profile at the working resolution and the horizon's small step at
-    /// its top is lost in the noise. Above a real horizon the sky may go on brightening for
-    /// as far, but by less than the horizon's own step.
-    pub(crate) fn at_foot_of_ramp(&self, extent: f32) -> bool {
+    /// The rise above the line's own transition (from [`BELOW`] bins under it to
+    /// [`CLEAR_OF_CHOSEN`]` / 2` above it), in a transition (see [`Profile::transition_from`]).
+    pub(crate) fn rise_above(&self) -> Option<RiseAbove> {
         let own_top = BELOW + CLEAR_OF_CHOSEN / 2;
-        let (Some((end, rise)), Some(top), Some(foot)) = (
-            self.transition_from(own_top),
-            self.level(own_top),
-            self.level(0),
-        ) else {
-            return false;
-        };
-        rise >= MIN_STEP_LEVELS
-            && end.saturating_sub(BELOW) as f32 * self.rho_step >= extent
-            && rise >= top - foot
+        let ((end, rise), top, foot) = (
+            self.transition_from(own_top)?,
+            self.level(own_top)?,
+            self.level(0)?,
+        );
+        Some(RiseAbove {
+            reach: end.saturating_sub(BELOW) as f32 * self.rho_step,
+            rise,
+            across: top - foot,
+        })
+    }
+
+    /// Whether the line lies at the foot of a ramp rather than on a step: above the line's
+    /// own transition the profile rises by more than it rose across the line, in a transition
+    /// that reaches at least `extent` (normalised units) above the line (see [`RiseAbove`]).
+    /// Under haze in dim light the ground's ramp up to the airlight is the steepest part of
+    /// the profile at the working resolution and the horizon's small step at its top is lost
+    /// in the noise. Above a real horizon the sky may go on brightening for as far, but by
+    /// less than the horizon's own step.
+    pub(crate) fn at_foot_of_ramp(&self, extent: f32) -> bool {
+        self.rise_above()
+            .is_some_and(|rise| rise.reaches(extent) && rise.exceeds_the_step())
     }
 
     /// Whether the sky side is striped: clear steps of alternating polarity, at least
@@ -801,6 +830,28 @@ mod tests {
         let step = profile_over_ground(|k| 160.0 + 0.5 * k as f32);
         assert!(step.rises_above());
         assert!(!step.at_foot_of_ramp(0.1));
+    }
+
+    #[test]
+    fn a_band_of_hazy_ground_over_a_sharp_edge_rises_far_but_less_than_the_edge_steps() {
+        // A sharp edge from the ground's 100 to 150, then a band of hazy far ground rising
+        // 1.2 levels a row for 24 rows (about 10° at 320 px) up to 179, then a sky darkening
+        // away from its glow: the rise above the line reaches the ramp's extent, but by less
+        // than the edge stepped, so the line is not at the foot of a ramp by its levels alone
+        // (`aerial` seed 140 `mixed`: the band's colour tells it, see `mod.rs`).
+        let band = profile_over_ground(|k| {
+            if k < 2 {
+                150.0
+            } else if k < 26 {
+                150.0 + 1.2 * (k - 1) as f32
+            } else {
+                (179.0 - 3.0 * (k - 25) as f32).max(0.0)
+            }
+        });
+        let rise = band.rise_above().expect("a rise above the edge");
+        assert!(rise.reaches(0.1), "{rise:?}");
+        assert!(!rise.exceeds_the_step(), "{rise:?}");
+        assert!(!band.at_foot_of_ramp(0.1));
     }
 
     #[test]
