@@ -1158,9 +1158,9 @@ impl HorizonDetector {
         // sky above it adds.
         // So is a line under a rise as long whose band above is as little blue as ground
         // ([`GROUND_BLUE_SHARE`]): the band of hazy far ground over a sharp ground edge, which
-        // rises to the horizon by less than the edge steps (`aerial` seed 140 `mixed`: the
-        // line 4–6° under the horizon, trusted at 0.3–0.8 on 13 frames). Over a horizon, the
-        // band is the sky's glow, bluer than that.
+        // rises to the horizon by less than the edge steps (`aerial` seed 140 `mixed`: 13
+        // frames wrong and trusted at 0.3–0.8, most 4–7° under the horizon). Over a horizon,
+        // the band is the sky's glow, bluer than that.
         // (`on_ramp` asks for a sky brighter than the ground: the sky is on the normal's side.)
         let under_ground_coloured_band = || {
             profile
@@ -1751,8 +1751,8 @@ fn colour_split_over(samples: &[Sample], extent: f32, line: Line, band: f32) -> 
 /// search's own to replace it ([`colour_split_over`]). Measured on the 240 frames with a
 /// horizon and no edge line of the tuning sets (seed 1) and the seen `aerial` seeds 137–143:
 /// taking the colour's split on all of them put 89 right that were wrong and 16 wrong that
-/// were right; on those whose gain was at least 0.3, 73 and 2 (a hazy band under the horizon
-/// in seed 140's `mixed`, bluer than the ground beneath it), at least 0.4, 60 and the same 2.
+/// were right; on those whose gain was at least 0.3, 73 and 2 (seed 140 `mixed` 320, frames
+/// 37–38), at least 0.4, 60 and the same 2.
 /// `terrain` `transmission`'s frames, where colour alone lost 4 of the 16, gained 0.26–0.29:
 /// 0.4 keeps clear of them.
 const COLOUR_SPLIT_GAIN: f32 = 0.4;
