@@ -411,7 +411,9 @@ pub(crate) struct Separation {
     /// Share of the samples' variance (luma and colour) explained by the two sides, in [0, 1]
     /// (Otsu's criterion for a line instead of a threshold).
     pub explained: f32,
-    /// Share of the colour's (blue minus red) variance alone explained by the two sides.
+    /// Share of the colour's (blue minus red) variance alone explained by the two sides, over
+    /// the same samples as `explained` (clipped ones and the band about the line left out, the
+    /// same +1 in the variance).
     pub colour_explained: f32,
     /// Evidence, cue by cue, that the brighter side (the normal's) is the sky.
     pub cues: SkyCues,

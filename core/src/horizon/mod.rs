@@ -1041,7 +1041,7 @@ impl HorizonDetector {
         // direction may be a ground edge turned from the horizon under a band of hazy far
         // ground (`aerial` seed 140 `sensor-noise`: 5–8° turned, 5° under it, trusted on 24
         // frames of 40): the horizon is looked for as a top step across lines turned further.
-        // The samples as read last (again, after destriping).
+        // The samples as read last (again, after the frame was destriped or put back).
         let late_context = LineContext {
             camera: &camera,
             knots: &self.knots,
@@ -1053,6 +1053,20 @@ impl HorizonDetector {
             bands: &bands,
             max_angle_difference,
         };
+        // A line under a rise as long as a ramp's whose band above is as little blue as ground
+        // ([`GROUND_BLUE_SHARE`]): the band of hazy far ground over a sharp ground edge, which
+        // rises to the horizon by less than the edge steps (`aerial` seed 140 `mixed`: 13
+        // frames wrong and trusted at 0.3–0.8, most 4–7° under the horizon). Over a horizon,
+        // the band is the sky's glow, bluer than that. Measured across the line the profile
+        // was read across, and kept only while the line stays there: a turned top step found
+        // above the band moves the line to its top (`on_ramp` asks for a sky brighter than
+        // the ground: the sky is on the normal's side).
+        let mut under_ground_coloured_band = on_ramp
+            && profile
+                .rise_above()
+                .is_some_and(|rise| rise.reaches(RAMP_EXTENT))
+            && band_blue_share(&late_context, chosen.line, 1.0)
+                .is_some_and(|share| share <= GROUND_BLUE_SHARE);
         if on_ramp
             && !climbed
             && let Some(upper) = turned_top_over_ramp(&late_context, ws.grey, &chosen)
@@ -1063,6 +1077,7 @@ impl HorizonDetector {
             // line keeps the ramp's quarter of its confidence below.
             turned_from = Some(chosen.line);
             chosen = self.tracked(upper);
+            under_ground_coloured_band = false;
         }
         // A destriped line may still lie inside the transition rather than at its top (the
         // top step found nothing clearer); a clear step above it in the same transition
@@ -1156,20 +1171,8 @@ impl HorizonDetector {
         // 40 past the gate on seeds 1 and 2). Where more of the rise is above the line than
         // across it, the line is not trusted; a horizon's own step is larger than what the
         // sky above it adds.
-        // So is a line under a rise as long whose band above is as little blue as ground
-        // ([`GROUND_BLUE_SHARE`]): the band of hazy far ground over a sharp ground edge, which
-        // rises to the horizon by less than the edge steps (`aerial` seed 140 `mixed`: 13
-        // frames wrong and trusted at 0.3–0.8, most 4–7° under the horizon). Over a horizon,
-        // the band is the sky's glow, bluer than that.
-        // (`on_ramp` asks for a sky brighter than the ground: the sky is on the normal's side.)
-        let under_ground_coloured_band = || {
-            profile
-                .rise_above()
-                .is_some_and(|rise| rise.reaches(RAMP_EXTENT))
-                && band_blue_share(&late_context, chosen.line, 1.0)
-                    .is_some_and(|share| share <= GROUND_BLUE_SHARE)
-        };
-        if on_ramp && (profile.at_foot_of_ramp(RAMP_EXTENT) || under_ground_coloured_band()) {
+        // So is a line under a band of hazy ground (`under_ground_coloured_band` above).
+        if on_ramp && (profile.at_foot_of_ramp(RAMP_EXTENT) || under_ground_coloured_band) {
             confidence *= RAMP_CONFIDENCE;
         }
         // A ridge's top is placed by a profile's brightest bin at a turn searched in steps

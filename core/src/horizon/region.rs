@@ -53,8 +53,8 @@ impl Bin {
 }
 
 /// What a split's two sides are told apart by.
-#[derive(Clone, Copy, PartialEq, Eq)]
-pub(crate) enum Criterion {
+#[derive(Clone, Copy)]
+enum Criterion {
     /// Luma and colour (blue minus red) together, in levels.
     LumaAndColour,
     /// Colour alone: a sky told from the ground by its blue where a glow makes the luma split
