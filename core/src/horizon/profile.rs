@@ -130,6 +130,13 @@ impl Profile {
         columns: 0,
     };
 
+    /// Counts a column whose crossing is at `point` with a gradient of `norm` across the line.
+    fn take_column(&mut self, point: (f32, f32), norm: f32) {
+        self.point = (self.point.0 + point.0, self.point.1 + point.1);
+        self.gradient += norm;
+        self.columns += 1;
+    }
+
     fn merged(&self, other: &Profile) -> Profile {
         let mut m = *self;
         for i in 0..BINS {
@@ -656,9 +663,7 @@ fn read_halves(
             let Some(profile) = halves.get_mut(half) else {
                 return;
             };
-            profile.point = (profile.point.0 + point.0, profile.point.1 + point.1);
-            profile.gradient += norm;
-            profile.columns += 1;
+            profile.take_column(point, norm);
             total_pixels += bin_pixels(profile, &pixels, along_columns, (a, b, k), first..=last);
         },
     );
@@ -841,9 +846,7 @@ fn extend_halves(
         let Some(profile) = halves.get_mut(half) else {
             continue;
         };
-        profile.point = (profile.point.0 + point.0, profile.point.1 + point.1);
-        profile.gradient += norm;
-        profile.columns += 1;
+        profile.take_column(point, norm);
         let column = (a, b, k);
         total_pixels += match read_range(b, k, walk.reaches, minor) {
             // The longer reach's range holds the shorter's: the pixels either side of it.
