@@ -911,6 +911,22 @@ impl HorizonDetector {
             }
         }
 
+        // The same dark band, over a shore turned from the horizon by more than the top step's
+        // own turns (±3°): the coast at an angle to the view, its shore meeting the horizon
+        // at its vanishing point in or near the frame (see [`sea_over_shore`]).
+        if !climbed
+            && !from_region
+            && !sky_brighter
+            && chosen.bright_side_cues.flipped().brighter > 0.0
+            && let Some(upper) = sea_over_shore(&context, ws.grey, &chosen)
+        {
+            turned_from = Some(chosen.line);
+            profile = across(upper.line, 1.0);
+            chosen = self.tracked(upper);
+            climbed = true;
+            over_dark_band = true;
+        }
+
         // A shore under a calm sea: the sea mirrors the sky, brightening up to the horizon
         // as the haze does, and the shore below it is the clearest sky-over-ground step in
         // the frame, turned from the horizon by the coast's angle (`synth` `calm-sea`: 8–25°).
@@ -1731,6 +1747,56 @@ fn ridge_over_ramp(
     }
     let separation = hough::separation(c.samples, ridge.line, 2.0 * c.rho.step);
     Some(Scored::new(ridge.line, true, separation, chosen.coverage))
+}
+
+/// Least texture of the band between a shore and the sea's horizon found above it, as a
+/// share of the sky's above that horizon ([`sea_over_shore`]). The sea's ripples and the
+/// clouds in its sky measured about alike (`aerial` seed 142 `ground-edges`: 0.8–1.0 of the
+/// sky's), so the ridge's bar (a band rougher than its sky, [`RIDGE_BAND_TEXTURE_RATIO`])
+/// refused them; a glow under a hazy horizon that was read right is far smoother than its
+/// sky (`synth` `haze`, the one such frame: 0.29) and must not be taken for a sea.
+const SEA_BAND_TEXTURE_SHARE: f32 = 0.5;
+
+/// The horizon over a sea beyond a shore turned from it (the coast at an angle to the view).
+/// The chosen line is the shore, stepping down towards a side darker near it that is, as a
+/// whole, the brighter (the caller asks): the sea darkens away from the horizon, under a
+/// step there of a few levels (seed 142 `ground-edges`: 6–8), and is darkest at the shore.
+/// The part of the frame on that side of the shore is split in two ([`region::search_above`]):
+/// sea and sky, the split somewhere on the sea's long ramp. It is taken when it splits that
+/// part well ([`RIDGE_ABOVE_EXPLAINED`], as the ridge's), the band between it and the shore is
+/// textured as ground is ([`SEA_BAND_TEXTURE_SHARE`]), it splits the frame
+/// ([`MIN_EXPLAINED`]), and the top of its transition is one step the two halves of the line
+/// agree on ([`region::top_step`]): the horizon is that step. Not required: that the
+/// horizon lies above the shore all across the frame, as a shore turned 20–30° meets it in
+/// the frame.
+fn sea_over_shore(c: &LineContext<'_>, grey: &[u8], chosen: &Scored) -> Option<Scored> {
+    // The shore with its normal towards its sky side.
+    let shore = Line {
+        angle: chosen.line.angle + PI,
+        rho: -chosen.line.rho,
+    };
+    let split = region::search_above(
+        c.samples,
+        libm::sqrtf(c.max_radius2),
+        shore,
+        2.0 * c.rho.step,
+    )?;
+    if separation_above(c, shore, split, 1.0).explained < RIDGE_ABOVE_EXPLAINED {
+        return None;
+    }
+    let texture = hough::band_textures(c.samples, shore, split, 1.0, c.rho.step);
+    let textured_as_ground = texture.between_count >= 8
+        && texture.above_count >= 8
+        && texture.between >= SEA_BAND_TEXTURE_SHARE * texture.above;
+    if !textured_as_ground
+        || hough::separation(c.samples, split, 2.0 * c.rho.step).explained < MIN_EXPLAINED
+    {
+        return None;
+    }
+    let top = region::top_step(grey, c.geo, c.camera, split, c.rho.step, 1.0)
+        .filter(|top| top.halves_agree && top.one_transition)?;
+    let separation = hough::separation(c.samples, top.line, 2.0 * c.rho.step);
+    Some(Scored::new(top.line, true, separation, chosen.coverage))
 }
 
 /// The split of the frame by colour alone ([`region::search_by_colour`]) where it explains

@@ -78,10 +78,10 @@ fn between(low: Bin, total: Bin, criterion: Criterion) -> Option<f32> {
 }
 
 /// The unsaturated samples taken (every `stride`-th), summed: the same for every split.
-fn sum_of(samples: &[Sample], stride: usize) -> Bin {
+fn sum_of(samples: &[Sample], stride: usize, keep: impl Fn(&Sample) -> bool) -> Bin {
     let mut total = Bin::default();
     for sample in samples.iter().step_by(stride.max(1)) {
-        if sample.luma < SATURATED {
+        if sample.luma < SATURATED && keep(sample) {
             total.add(sample);
         }
     }
@@ -94,7 +94,7 @@ fn sum_of(samples: &[Sample], stride: usize) -> Bin {
 /// difference (high side minus low side).
 fn best_split<const N: usize>(
     samples: &[Sample],
-    (stride, criterion): (usize, Criterion),
+    (stride, criterion, keep): (usize, Criterion, impl Fn(&Sample) -> bool),
     total: Bin,
     angle: f32,
     start: f32,
@@ -105,7 +105,7 @@ fn best_split<const N: usize>(
     let mut below = Bin::default();
     let inverse = 1.0 / width;
     for sample in samples.iter().step_by(stride.max(1)) {
-        if sample.luma >= SATURATED {
+        if sample.luma >= SATURATED || !keep(sample) {
             continue;
         }
         let d = sample.x * s + sample.y * c;
@@ -171,7 +171,7 @@ const FINE_ROUNDING: f32 = 1e-4;
 /// of a pass per direction, bit for bit.
 fn fine_splits(
     samples: &[Sample],
-    (stride, criterion): (usize, Criterion),
+    (stride, criterion, keep): (usize, Criterion, impl Fn(&Sample) -> bool),
     total: Bin,
     angle: f32,
     start: f32,
@@ -191,7 +191,7 @@ fn fine_splits(
     let mut below = [Bin::default(); FINE_DIRECTIONS];
     let mut bins = [[Bin::default(); FINE_BINS]; FINE_DIRECTIONS];
     for sample in samples.iter().step_by(stride.max(1)) {
-        if sample.luma >= SATURATED {
+        if sample.luma >= SATURATED || !keep(sample) {
             continue;
         }
         let d0 = sample.x * s0 + sample.y * c0;
@@ -276,12 +276,36 @@ pub(crate) fn quick_search(samples: &[Sample], extent: f32) -> Option<Line> {
 /// Coarse directions either side of a given one that [`search_near`] tries.
 const NEAR_DIRECTIONS: i32 = 5;
 
+/// The split of the samples at least `margin` from `floor` on its normal's side: the part of
+/// the frame a line has for its sky, split in two (see `sea_over_shore` in the parent
+/// module).
+pub(crate) fn search_above(
+    samples: &[Sample],
+    extent: f32,
+    floor: Line,
+    margin: f32,
+) -> Option<Line> {
+    let (nx, ny) = floor.normal();
+    let above = move |s: &Sample| s.x * nx + s.y * ny - floor.rho >= margin;
+    search_among(samples, extent, (1, None, Criterion::LumaAndColour), above)
+}
+
 fn search_with(
     samples: &[Sample],
     extent: f32,
     thin: usize,
     near: Option<f32>,
     criterion: Criterion,
+) -> Option<Line> {
+    search_among(samples, extent, (thin, near, criterion), |_| true)
+}
+
+/// [`search_with`] over the samples `keep` takes.
+fn search_among(
+    samples: &[Sample],
+    extent: f32,
+    (thin, near, criterion): (usize, Option<f32>, Criterion),
+    keep: impl Fn(&Sample) -> bool + Copy,
 ) -> Option<Line> {
     if !extent.is_finite() || extent <= 0.0 {
         return None;
@@ -291,8 +315,8 @@ fn search_with(
     let mut coarse_angle = 0.0;
     let directions = COARSE_DIRECTIONS / thin.max(1);
     let coarse_stride = thin * thin;
-    let coarse_total = sum_of(samples, coarse_stride);
-    let total = sum_of(samples, thin);
+    let coarse_total = sum_of(samples, coarse_stride, keep);
+    let total = sum_of(samples, thin, keep);
     // Near a given direction, the full search's 3° steps (`thin` then only thins the samples).
     let step = match near {
         Some(_) => PI / COARSE_DIRECTIONS as f32,
@@ -306,7 +330,7 @@ fn search_with(
         let angle = near.unwrap_or(0.0) + i as f32 * step;
         if let Some(split) = best_split::<COARSE_BINS>(
             samples,
-            (coarse_stride, criterion),
+            (coarse_stride, criterion, keep),
             coarse_total,
             angle,
             -extent,
@@ -323,7 +347,7 @@ fn search_with(
     let start = coarse_d - FINE_REACH as f32 * width;
     let splits = fine_splits(
         samples,
-        (thin, criterion),
+        (thin, criterion, keep),
         total,
         coarse_angle,
         start,

@@ -1456,6 +1456,49 @@ fn hazy_sea_above_a_shore_is_below_the_sky_not_the_sky() {
 }
 
 #[test]
+fn a_hazy_sea_over_a_shore_turned_from_it_is_below_the_sky() {
+    // The coast at an angle to the view: the shore is turned 20–27° from the horizon and meets
+    // it at its vanishing point, in the frame or near it. The shore is the strongest edge and
+    // steps down towards the sea, which darkens slowly from a step of a few levels under the
+    // sky at the horizon (as on `aerial` seed 142 `ground-edges`: 6–8 levels). The top step
+    // of the dark band was looked for above lines turned only ±3° from the shore, and the
+    // shore was read (seed 142: 26 of 40 frames, 18–28° of roll off). The horizon is where
+    // the part of the frame over the shore splits into sea and sky, at the top of that
+    // split's transition.
+    let camera = camera_320();
+    for (roll, pitch, turn, below) in [
+        (-13.0f32, -5.0f32, 27.0f32, 6.0f32),
+        (5.0, 3.0, 25.0, 8.0),
+        (12.0, -1.0, -22.0, 7.0),
+        (-4.0, 1.0, -24.0, 6.0),
+    ] {
+        let shore = line_side(camera, (roll + turn) * DEG, (pitch + below) * DEG);
+        let rgb = render_rgb(&camera, roll * DEG, pitch * DEG, |u, v, d| {
+            let ripple = 4.0 * (hash((u / 2.0) as i64, (v / 2.0) as i64, 3) - 0.5);
+            if shore(u, v) > 0.0 && d > 0.0 {
+                // Fields, textured.
+                let grain = 24.0 * (hash((u / 6.0) as i64, (v / 6.0) as i64, 4) - 0.5);
+                [140.0, 140.0, 80.0].map(|c| c + grain)
+            } else if d > 0.0 {
+                // The sea, darkening slowly from the haze at the horizon.
+                let fade = (d / 0.15).min(1.0);
+                [
+                    150.0 - 100.0 * fade,
+                    154.0 - 90.0 * fade,
+                    163.0 - 80.0 * fade,
+                ]
+                .map(|c| c + ripple)
+            } else {
+                // The sky, darkening slowly away from the horizon.
+                [146.0, 163.0, 182.0].map(|c| c + 20.0 * d)
+            }
+        });
+        // The top step's directions are half a degree apart about the split's.
+        assert_attitude(detect_once(camera, Pixels::Rgb(&rgb)), roll, pitch, 1.5);
+    }
+}
+
+#[test]
 fn a_sea_seen_steeply_down_is_not_a_sky_frame_after_frame() {
     // Looking 50° down at a shore: the sea is darker than the fields, but bluer and smoother,
     // so two cues of three take it for the sky. Its shore drifts slowly through the frames, as
