@@ -911,9 +911,10 @@ impl HorizonDetector {
             }
         }
 
-        // The same dark band, over a shore turned from the horizon by more than the top step's
-        // own turns (±3°): the coast at an angle to the view, its shore meeting the horizon
-        // at its vanishing point in or near the frame (see [`sea_over_shore`]).
+        // The same dark band where its top step was not found or not taken: over a shore
+        // turned from the horizon by more than the top step's own turns (±3°), the coast at
+        // an angle to the view, its shore meeting the horizon at its vanishing point in or
+        // near the frame (see [`sea_over_shore`]).
         if !climbed
             && !from_region
             && !sky_brighter
@@ -1762,13 +1763,15 @@ const SEA_BAND_TEXTURE_SHARE: f32 = 0.5;
 /// whole, the brighter (the caller asks): the sea darkens away from the horizon, under a
 /// step there of a few levels (seed 142 `ground-edges`: 6–8), and is darkest at the shore.
 /// The part of the frame on that side of the shore is split in two ([`region::search_above`]):
-/// sea and sky, the split somewhere on the sea's long ramp. It is taken when it splits that
-/// part well ([`RIDGE_ABOVE_EXPLAINED`], as the ridge's), the band between it and the shore is
-/// textured as ground is ([`SEA_BAND_TEXTURE_SHARE`]), it splits the frame
-/// ([`MIN_EXPLAINED`]), and the top of its transition is one step the two halves of the line
-/// agree on ([`region::top_step`]): the horizon is that step. Not required: that the
-/// horizon lies above the shore all across the frame, as a shore turned 20–30° meets it in
-/// the frame.
+/// sea and sky, the split somewhere on the sea's long ramp. It is taken when its brighter
+/// side faces away from the shore (the sky over the sea: a split the other way round is no
+/// horizon over this shore), it splits that part well ([`RIDGE_ABOVE_EXPLAINED`], as the
+/// ridge's), the band between it and the shore is textured at least
+/// [`SEA_BAND_TEXTURE_SHARE`] of the sky above it, and it splits the frame
+/// ([`MIN_EXPLAINED`]); the top of its transition must be one step the two halves of the line
+/// agree on ([`region::top_step`]) and split the frame as well: the horizon is that step. Not
+/// required: that the horizon lies above the shore all across the frame, as a shore turned
+/// 20–30° meets it in the frame.
 fn sea_over_shore(c: &LineContext<'_>, grey: &[u8], chosen: &Scored) -> Option<Scored> {
     // The shore with its normal towards its sky side.
     let shore = Line {
@@ -1781,7 +1784,10 @@ fn sea_over_shore(c: &LineContext<'_>, grey: &[u8], chosen: &Scored) -> Option<S
         shore,
         2.0 * c.rho.step,
     )?;
-    if separation_above(c, shore, split, 1.0).explained < RIDGE_ABOVE_EXPLAINED {
+    // The split's normal points to its brighter side, which the measures below take for
+    // the sky's.
+    let faces_away = libm::cosf(split.angle - shore.angle) > 0.0;
+    if !faces_away || separation_above(c, shore, split, 1.0).explained < RIDGE_ABOVE_EXPLAINED {
         return None;
     }
     let texture = hough::band_textures(c.samples, shore, split, 1.0, c.rho.step);
@@ -1796,7 +1802,8 @@ fn sea_over_shore(c: &LineContext<'_>, grey: &[u8], chosen: &Scored) -> Option<S
     let top = region::top_step(grey, c.geo, c.camera, split, c.rho.step, 1.0)
         .filter(|top| top.halves_agree && top.one_transition)?;
     let separation = hough::separation(c.samples, top.line, 2.0 * c.rho.step);
-    Some(Scored::new(top.line, true, separation, chosen.coverage))
+    (separation.explained >= MIN_EXPLAINED)
+        .then(|| Scored::new(top.line, true, separation, chosen.coverage))
 }
 
 /// The split of the frame by colour alone ([`region::search_by_colour`]) where it explains
