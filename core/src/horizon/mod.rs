@@ -883,7 +883,10 @@ impl HorizonDetector {
         // as the sky, though that side as a whole is the brighter. Seen from the land over a
         // hazy sea the shore is such an edge (the sea darker than the fields, fading into the
         // haze up to the horizon); the horizon is the top of the band, the step where the
-        // sky's glow ends. Looked for from two working pixels inside the band.
+        // sky's glow ends. Looked for from two working pixels inside the band; where it is not
+        // found or not taken, over a shore turned from the horizon by more than the top step's
+        // own turns (±3°): the coast at an angle to the view, its shore meeting the horizon at
+        // its vanishing point in or near the frame (see [`sea_over_shore`]).
         let mut over_dark_band = false;
         if !climbed
             && !from_region
@@ -894,38 +897,22 @@ impl HorizonDetector {
                 angle: chosen.line.angle,
                 rho: chosen.line.rho - 2.0 * rho.step,
             };
-            if let Some(top) = region::top_step(ws.grey, geo, &camera, inside, rho.step, -1.0)
-                && top.halves_agree
-                && top.one_transition
-                && top.sky_ward_px > TOP_AMBIGUITY
-            {
-                let separation = hough::separation(samples, top.line, 2.0 * rho.step);
-                if separation.explained >= MIN_EXPLAINED {
-                    let upper = Scored::new(top.line, true, separation, chosen.coverage);
-                    turned_from = Some(chosen.line);
-                    profile = across(upper.line, 1.0);
-                    chosen = self.tracked(upper);
-                    climbed = true;
-                    over_dark_band = true;
-                }
+            let band_top = region::top_step(ws.grey, geo, &camera, inside, rho.step, -1.0)
+                .filter(|top| {
+                    top.halves_agree && top.one_transition && top.sky_ward_px > TOP_AMBIGUITY
+                })
+                .and_then(|top| {
+                    let separation = hough::separation(samples, top.line, 2.0 * rho.step);
+                    (separation.explained >= MIN_EXPLAINED)
+                        .then(|| Scored::new(top.line, true, separation, chosen.coverage))
+                });
+            if let Some(upper) = band_top.or_else(|| sea_over_shore(&context, ws.grey, &chosen)) {
+                turned_from = Some(chosen.line);
+                profile = across(upper.line, 1.0);
+                chosen = self.tracked(upper);
+                climbed = true;
+                over_dark_band = true;
             }
-        }
-
-        // The same dark band where its top step was not found or not taken: over a shore
-        // turned from the horizon by more than the top step's own turns (±3°), the coast at
-        // an angle to the view, its shore meeting the horizon at its vanishing point in or
-        // near the frame (see [`sea_over_shore`]).
-        if !climbed
-            && !from_region
-            && !sky_brighter
-            && chosen.bright_side_cues.flipped().brighter > 0.0
-            && let Some(upper) = sea_over_shore(&context, ws.grey, &chosen)
-        {
-            turned_from = Some(chosen.line);
-            profile = across(upper.line, 1.0);
-            chosen = self.tracked(upper);
-            climbed = true;
-            over_dark_band = true;
         }
 
         // A shore under a calm sea: the sea mirrors the sky, brightening up to the horizon
@@ -1790,12 +1777,9 @@ fn sea_over_shore(c: &LineContext<'_>, grey: &[u8], chosen: &Scored) -> Option<S
     if !faces_away || separation_above(c, shore, split, 1.0).explained < RIDGE_ABOVE_EXPLAINED {
         return None;
     }
-    let texture = hough::band_textures(c.samples, shore, split, 1.0, c.rho.step);
-    let textured_as_ground = texture.between_count >= 8
-        && texture.above_count >= 8
-        && texture.between >= SEA_BAND_TEXTURE_SHARE * texture.above;
-    if !textured_as_ground
-        || hough::separation(c.samples, split, 2.0 * c.rho.step).explained < MIN_EXPLAINED
+    let textured =
+        textured_under_smoother_sky(c, (shore, split, 1.0), (SEA_BAND_TEXTURE_SHARE, 0.0));
+    if !textured || hough::separation(c.samples, split, 2.0 * c.rho.step).explained < MIN_EXPLAINED
     {
         return None;
     }
