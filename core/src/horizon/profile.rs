@@ -895,12 +895,12 @@ pub(crate) fn place(
         return (placed, placement);
     }
     match clear_of_glare(frame, camera, placed, search_px, sky_brighter) {
-        // The read moves the line; it does not make it more trusted. The sun's bloom is still
-        // at the line: what the whole line measured of the clipping stays, and so does a
-        // contradiction its halves found, and the lesser significance. A bright halo that is
-        // not clipped can still draw the clear run's edge (`aerial` seed 141 `glare`, frames
-        // 0–1: the halves of the run agree on a line 5° of roll out), and those lines were
-        // under the gate only for their halves' contradiction.
+        // What the whole line measured of the clipping stays (the detector weighs it less for
+        // a line read clear, see `read_clear` in the detector), and so do a contradiction its
+        // halves found and the lesser significance. A bright halo that is not clipped can
+        // still draw the clear run's edge (`aerial` seed 141 `glare`, frames 0–1: the halves
+        // of the run agree on a line 5° of roll out), and those lines are under the gate for
+        // their halves' contradiction.
         Some((clear, clear_placement)) => (
             clear,
             Placement {

@@ -739,6 +739,37 @@ fn sun_glare_near_the_horizon() {
 }
 
 #[test]
+fn a_sun_beside_the_horizon_leaves_the_rest_of_it_trusted() {
+    // The sun low on the right: its bloom clips the sky down to the horizon over a third of
+    // the frame's width, and the rest of the horizon is a clear edge. Read where the sky is
+    // clear, the line is right and the estimator may take it.
+    let camera = camera_320();
+    let ground = |u: f32, v: f32, d: f32| {
+        if d <= 0.0 {
+            185.0
+        } else {
+            95.0 + 30.0 * (hash((u / 6.0) as i64, (v / 4.0) as i64, 5) - 0.5)
+        }
+    };
+    for (roll, pitch, su, sv) in [(4.0f32, 1.0f32, 265.0, 100.0), (-6.0, -2.0, 60.0, 95.0)] {
+        let grey = render_grey(
+            &camera,
+            roll * DEG,
+            pitch * DEG,
+            with_sun(su, sv, 34.0, ground),
+        );
+        let h = detect_once(camera, Pixels::Grey(&grey));
+        assert_attitude(h, roll, pitch, 1.0);
+        let confidence = h.map_or(0.0, |h| h.confidence);
+        assert!(
+            confidence >= gate(),
+            "roll {roll} pitch {pitch}: right, but trusted at {confidence:.2} (gate {})",
+            gate()
+        );
+    }
+}
+
+#[test]
 fn sun_on_the_horizon_is_not_trusted() {
     // The bloom clips a third of the frame across the horizon: whatever line comes out, the
     // estimator must not take it.
