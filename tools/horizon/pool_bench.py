@@ -77,13 +77,15 @@ def add_set(rows, entry):
     within = {k: float(ours[f"within_{k}deg"] or 0.0) for k in (1, 2, 5)}
     r = rows.setdefault(
         name,
-        dict(frames=0, visible=0, within={1: 0, 2: 0, 5: 0}, false=0, cv_within=0,
+        dict(frames=0, visible=0, within={1: 0, 2: 0, 5: 0}, false=0, usable=0, cv_within=0,
              cv_false=0, cv=opencv is not None, seeds=0, seeds_at_target=0,
              seeds_below_opencv=0),
     )
     r["frames"] += frames
     r["visible"] += visible
     r["false"] += round(float(ours["false_confident_rate"]) * frames)
+    # Right and through the estimator's gate, of the frames with a horizon to see.
+    r["usable"] += round(float(ours.get("usable") or 0.0) * visible)
     for k, share_ in within.items():
         r["within"][k] += round(share_ * visible)
     r["cv"] = r["cv"] and opencv is not None
@@ -111,6 +113,7 @@ def as_json(rows, speed, seeds):
             "within_2deg": share(r["within"][2], r["visible"]),
             "within_5deg": share(r["within"][5], r["visible"]),
             "false_confident_rate": share(r["false"], r["frames"]),
+            "usable": share(r["usable"], r["visible"]),
             "opencv_within_2deg": share(r["cv_within"], r["visible"]) if r["cv"] else None,
             "opencv_false_confident_rate": share(r["cv_false"], r["frames"]) if r["cv"] else None,
             "seeds_with_visible_horizon": r["seeds"],
@@ -143,17 +146,19 @@ def as_markdown(pooled):
     f = lambda x: "–" if x is None else f"{x:.2f}"
     lines = [
         f"Pooled over {pooled['reports']} reports. Within 2°: of the frames with a visible "
-        "horizon; false confidence: of all frames.",
+        "horizon; usable: right and through the estimator's gate, of the same frames; false "
+        "confidence: of all frames.",
         "",
-        "| set | frames (visible) | within 2° | OpenCV within 2° | false conf | OpenCV false conf "
-        f"| seeds ≥ {TARGET} | seeds below OpenCV |",
-        "|---|---|---|---|---|---|---|---|",
+        "| set | frames (visible) | within 2° | OpenCV within 2° | usable | false conf "
+        f"| OpenCV false conf | seeds ≥ {TARGET} | seeds below OpenCV |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for s in pooled["sets"]:
         below = "–" if s["seeds_below_opencv"] is None else s["seeds_below_opencv"]
         lines.append(
             f"| {s['set']} | {s['frames']} ({s['visible']}) | {f(s['within_2deg'])} "
-            f"| {f(s['opencv_within_2deg'])} | {f(s['false_confident_rate'])} "
+            f"| {f(s['opencv_within_2deg'])} | {f(s['usable'])} "
+            f"| {f(s['false_confident_rate'])} "
             f"| {f(s['opencv_false_confident_rate'])} "
             f"| {s['seeds_at_target']} / {s['seeds_with_visible_horizon']} "
             f"| {below} / {s['seeds_with_visible_horizon']} |")

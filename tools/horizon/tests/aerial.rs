@@ -67,6 +67,7 @@ fn bench_scores_an_aerial_set_against_its_truth() {
         "within_2deg",
         "within_5deg",
         "false_confident_rate",
+        "usable",
     ] {
         let (got, bench) = (set[key].as_f64(), accuracy[key].as_f64());
         assert!(
