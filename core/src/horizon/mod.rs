@@ -1209,8 +1209,8 @@ impl HorizonDetector {
         let clipped_share = clipped as f32 / samples.len().max(1) as f32;
         // Where the sun is in view beside the horizon, not on all of it, the line is read
         // again only where the sky next to it is clear (`profile::clear_of_glare`): a run of
-        // at least a third of the line, whose two halves find the edge on the line through
-        // them, clearly. There the horizon is in view, and the sky clipped elsewhere along
+        // at least 35 % of the columns it crosses, whose two halves find the edge on the line
+        // through them, clearly. There the horizon is in view, and the sky clipped elsewhere along
         // the line hides none of it; the frame's clipped share still counts, at half the
         // weight (a haze of glare over the whole frame, an over-exposed key). Before this, a
         // sun in view took the trust from frames read right to a tenth of a degree (`aerial`
@@ -1219,8 +1219,7 @@ impl HorizonDetector {
         // are left out: their clear run's edge may be a block's.
         let read_clear = placement.clear_of_glare
             && placement.halves == profile::Halves::Confirmed
-            && coded.is_none()
-            && tiled.is_none();
+            && coded.is_none();
         let frame_weight = if read_clear {
             CLIPPED_FRAME_WEIGHT_READ_CLEAR
         } else {

@@ -740,9 +740,9 @@ fn sun_glare_near_the_horizon() {
 
 #[test]
 fn a_sun_beside_the_horizon_leaves_the_rest_of_it_trusted() {
-    // The sun low on the right: its bloom clips the sky down to the horizon over a third of
-    // the frame's width, and the rest of the horizon is a clear edge. Read where the sky is
-    // clear, the line is right and the estimator may take it.
+    // The sun low on one side: its bloom clips the sky down to the horizon there, and the
+    // rest of the horizon is a clear edge. Read where the sky is clear, the line is right and
+    // the estimator may take it.
     let camera = camera_320();
     let ground = |u: f32, v: f32, d: f32| {
         if d <= 0.0 {
