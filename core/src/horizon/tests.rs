@@ -704,16 +704,22 @@ fn with_sun(
     }
 }
 
+/// A flat sky at `sky` over fields of 95 ± 15 in 6 × 4 px patches (texture `seed`): the
+/// scene the sun tests put a sun in.
+fn sky_over_fields(sky: f32, seed: u64) -> impl Fn(f32, f32, f32) -> f32 + Copy {
+    move |u, v, d| {
+        if d <= 0.0 {
+            sky
+        } else {
+            95.0 + 30.0 * (hash((u / 6.0) as i64, (v / 4.0) as i64, seed) - 0.5)
+        }
+    }
+}
+
 #[test]
 fn sun_glare_near_the_horizon() {
     let camera = camera_320();
-    let ground = |u: f32, v: f32, d: f32| {
-        if d <= 0.0 {
-            190.0
-        } else {
-            95.0 + 30.0 * (hash((u / 6.0) as i64, (v / 4.0) as i64, 3) - 0.5)
-        }
-    };
+    let ground = sky_over_fields(190.0, 3);
     let mut answered_right = 0;
     // The sun above the horizon, from clear of it to sitting on it.
     for (roll, pitch, su, sv, radius) in [
@@ -744,13 +750,7 @@ fn a_sun_beside_the_horizon_leaves_the_rest_of_it_trusted() {
     // rest of the horizon is a clear edge. Read where the sky is clear, the line is right and
     // the estimator may take it.
     let camera = camera_320();
-    let ground = |u: f32, v: f32, d: f32| {
-        if d <= 0.0 {
-            185.0
-        } else {
-            95.0 + 30.0 * (hash((u / 6.0) as i64, (v / 4.0) as i64, 5) - 0.5)
-        }
-    };
+    let ground = sky_over_fields(185.0, 5);
     for (roll, pitch, su, sv) in [(4.0f32, 1.0f32, 265.0, 100.0), (-6.0, -2.0, 60.0, 95.0)] {
         let grey = render_grey(
             &camera,
