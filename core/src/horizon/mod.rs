@@ -782,7 +782,11 @@ impl HorizonDetector {
         // edge of a white stripe (`synth` `white-stripes`), of a blanked bar, a family of
         // stripes, and, where a periodic pattern was notched out, a line level with the rows,
         // the edge of the link's hum bar (`terrain` `interference`: 7 frames lost to it, 3 of
-        // 40 on seed 16 at 640 px, while the rule skipped no line under a pattern).
+        // 40 on seed 16 at 640 px, while the rule skipped no line under a pattern). A family
+        // rules the climb out only where the chosen line is parallel to it, one of the
+        // stripes' crests itself: a shore turned from a sea's horizon is not, and the family
+        // it stands under is that horizon and the field edges beyond the shore, parallel to
+        // it (`aerial` `mixed`).
         let drawn_by_the_link = |s: &Scored| {
             !not_a_bar(s)
                 || sync_bar::along_saturated_bar(ws.grey, geo, &camera, s.line)
@@ -793,7 +797,7 @@ impl HorizonDetector {
         let family = stripe_family(&scored, rho.step);
         let mut overtaken = None;
         if !from_region
-            && family.is_none()
+            && family.is_none_or(|crest| !in_one_family(crest, chosen.line))
             && let Some(upper) =
                 drawn_line_above(&context, &scored, &chosen, |s| !drawn_by_the_link(s))
         {
@@ -2134,10 +2138,7 @@ fn sky_outshines_ground(samples: &[Sample], horizon: HorizonLine, band: f32) -> 
 /// the same line: the crests of a periodic pattern (several candidates refined onto one
 /// horizon are not a family). The one with the most parallels, the best scored among equals.
 fn stripe_family(scored: &[Option<Scored>], rho_step: f32) -> Option<Line> {
-    let parallel = |a: Line, b: Line| {
-        let d = libm::fabsf(wrap_angle(a.angle - b.angle));
-        (d < FAMILY_ANGLE || PI - d < FAMILY_ANGLE) && !same_line(a, b, rho_step)
-    };
+    let parallel = |a: Line, b: Line| in_one_family(a, b) && !same_line(a, b, rho_step);
     let mut best: Option<(usize, f32, Line)> = None;
     for s in scored.iter().flatten() {
         let count = 1 + scored
@@ -2150,6 +2151,13 @@ fn stripe_family(scored: &[Option<Scored>], rho_step: f32) -> Option<Line> {
         }
     }
     best.map(|(_, _, line)| line)
+}
+
+/// Whether two lines are parallel within [`FAMILY_ANGLE`], either polarity: members of one
+/// family of stripes.
+fn in_one_family(a: Line, b: Line) -> bool {
+    let d = libm::fabsf(wrap_angle(a.angle - b.angle));
+    d < FAMILY_ANGLE || PI - d < FAMILY_ANGLE
 }
 
 /// Candidates kept per direction (either polarity, within [`DIRECTION_BINS`] angle bins).

@@ -675,6 +675,37 @@ fn a_shore_out_of_parallel_under_a_sea_horizon() {
 }
 
 #[test]
+fn a_shore_out_of_parallel_under_a_sea_horizon_with_hedges_parallel_to_it() {
+    // The shore of the test above, turned 4° from the horizon, and two hedges across the
+    // land beyond it, parallel to the horizon (`aerial` seed 153 `mixed`: the sea's horizon,
+    // the shore under it and the field edges in the land). The horizon and the hedges are
+    // three parallel candidates, a family as a link's stripes draw; under a shore that
+    // splits the frame this clearly they are not the stripes' crests.
+    let camera = camera_320();
+    for (roll, pitch, turn) in [
+        (0.0f32, -2.0f32, 4.0f32),
+        (12.0, -4.0, -4.0),
+        (-20.0, 0.0, 4.0),
+    ] {
+        let shore = line_side(camera, (roll + turn) * DEG, (pitch + 7.0) * DEG);
+        let scene = |u: f32, v: f32, d: f32| {
+            let texture = 30.0 * (hash((u / 4.0) as i64, (v / 3.0) as i64, 11) - 0.5);
+            let hedge = [0.21f32, 0.27].iter().any(|&at| (d - at).abs() < 0.006);
+            if shore(u, v) > 0.0 {
+                if hedge { 25.0 } else { 75.0 + texture }
+            } else if d > 0.0 {
+                188.0 + 0.1 * texture
+            } else {
+                215.0
+            }
+        };
+        let grey = render_grey(&camera, roll * DEG, pitch * DEG, scene);
+        let h = detect_once(camera, Pixels::Grey(&grey));
+        assert_attitude(h, roll, pitch, 1.0);
+    }
+}
+
+#[test]
 fn heavy_sensor_noise() {
     // σ = 30 on a contrast of 70: Hough on Canny edges still holds here, so must we.
     let camera = camera_320();
