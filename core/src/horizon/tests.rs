@@ -645,62 +645,58 @@ fn ground_edge_stronger_than_the_horizon() {
     }
 }
 
+/// A calm sea (188) under a smooth sky (215), and a shore of dark textured land turned `turn`
+/// from the horizon and 7° under it, with dark hedges across the land at `hedges` (the
+/// conventions' line offset, tan of the angle under the horizon), parallel to the horizon.
+fn shore_under_a_calm_sea(roll: f32, pitch: f32, turn: f32, hedges: &[f32]) -> Vec<u8> {
+    let camera = camera_320();
+    let shore = line_side(camera, (roll + turn) * DEG, (pitch + 7.0) * DEG);
+    let scene = |u: f32, v: f32, d: f32| {
+        let texture = 30.0 * (hash((u / 4.0) as i64, (v / 3.0) as i64, 11) - 0.5);
+        if shore(u, v) > 0.0 {
+            if hedges.iter().any(|&at| (d - at).abs() < 0.006) {
+                25.0
+            } else {
+                75.0 + texture
+            }
+        } else if d > 0.0 {
+            188.0 + 0.1 * texture
+        } else {
+            215.0
+        }
+    };
+    render_grey(&camera, roll * DEG, pitch * DEG, scene)
+}
+
 #[test]
 fn a_shore_out_of_parallel_under_a_sea_horizon() {
-    // A calm sea (188) under a smooth sky (215), and a shore of dark textured land turned 5°
-    // from the horizon and 7° under it: the shore splits the frame into dark land and bright
-    // sea and sky better than the horizon does, and the two are too far out of parallel, with
-    // no textured ground between them, for the climb to a higher edge.
-    let camera = camera_320();
+    // The shore turned 5° splits the frame into dark land and bright sea and sky better than
+    // the horizon does, and the two are too far out of parallel, with no textured ground
+    // between them, for the climb to a higher edge.
     for (roll, pitch, turn) in [
         (0.0f32, -2.0f32, 5.0f32),
         (12.0, -4.0, -5.0),
         (-20.0, 0.0, 5.0),
     ] {
-        let shore = line_side(camera, (roll + turn) * DEG, (pitch + 7.0) * DEG);
-        let scene = |u: f32, v: f32, d: f32| {
-            let texture = 30.0 * (hash((u / 4.0) as i64, (v / 3.0) as i64, 11) - 0.5);
-            if shore(u, v) > 0.0 {
-                75.0 + texture
-            } else if d > 0.0 {
-                188.0 + 0.1 * texture
-            } else {
-                215.0
-            }
-        };
-        let grey = render_grey(&camera, roll * DEG, pitch * DEG, scene);
-        let h = detect_once(camera, Pixels::Grey(&grey));
+        let grey = shore_under_a_calm_sea(roll, pitch, turn, &[]);
+        let h = detect_once(camera_320(), Pixels::Grey(&grey));
         assert_attitude(h, roll, pitch, 1.0);
     }
 }
 
 #[test]
 fn a_shore_out_of_parallel_under_a_sea_horizon_with_hedges_parallel_to_it() {
-    // The shore of the test above, turned 4° from the horizon, and two hedges across the
-    // land beyond it, parallel to the horizon (`aerial` seed 153 `mixed`: the sea's horizon,
-    // the shore under it and the field edges in the land). The horizon and the hedges are
-    // three parallel candidates, a family as a link's stripes draw; under a shore that
-    // splits the frame this clearly they are not the stripes' crests.
-    let camera = camera_320();
+    // The shore turned 4°, and two hedges across the land beyond it, parallel to the horizon
+    // (`aerial` seed 153 `mixed`: the sea's horizon, the shore under it and the field edges
+    // in the land). The horizon and the hedges are three parallel candidates, a family as a
+    // link's stripes draw; the shore, turned from them, is not one of its crests.
     for (roll, pitch, turn) in [
         (0.0f32, -2.0f32, 4.0f32),
         (12.0, -4.0, -4.0),
         (-20.0, 0.0, 4.0),
     ] {
-        let shore = line_side(camera, (roll + turn) * DEG, (pitch + 7.0) * DEG);
-        let scene = |u: f32, v: f32, d: f32| {
-            let texture = 30.0 * (hash((u / 4.0) as i64, (v / 3.0) as i64, 11) - 0.5);
-            let hedge = [0.21f32, 0.27].iter().any(|&at| (d - at).abs() < 0.006);
-            if shore(u, v) > 0.0 {
-                if hedge { 25.0 } else { 75.0 + texture }
-            } else if d > 0.0 {
-                188.0 + 0.1 * texture
-            } else {
-                215.0
-            }
-        };
-        let grey = render_grey(&camera, roll * DEG, pitch * DEG, scene);
-        let h = detect_once(camera, Pixels::Grey(&grey));
+        let grey = shore_under_a_calm_sea(roll, pitch, turn, &[0.21, 0.27]);
+        let h = detect_once(camera_320(), Pixels::Grey(&grey));
         assert_attitude(h, roll, pitch, 1.0);
     }
 }
