@@ -574,7 +574,16 @@ impl HorizonDetector {
             usize::from(self.config.edge_pixels_per_perimeter_pixel) * perimeter,
             floor,
         );
-        let edge_stats = edges::collect_edges(ws.grey, geo, ws.rows, threshold, &camera, ws.edges);
+        let blocks_show = frame_grid.is_some_and(|g| g.contrast >= BLOCKS_SHOW);
+        let edge_stats = edges::collect_edges(
+            ws.grey,
+            geo,
+            ws.rows,
+            threshold,
+            &camera,
+            ws.edges,
+            coded.is_none() && !blocks_show,
+        );
         if tiled.is_some() {
             // Back to the deblocked frame for the regions, profiles and textures.
             working_image(geo, ws.grey);
@@ -1983,6 +1992,13 @@ const REGION_RECHECK_MARGIN: f32 = 1.15;
 /// stripes); `tree-line`, coded at a high quality, 1.4–2.5; `video-link` 2.9–13.5, `blocks`
 /// 5.6–16.3. Between the codec's high and low qualities.
 const CODED_IN_BLOCKS: f32 = 2.7;
+/// A frame whose luma steps this many times more on the 8-pixel grid than off it shows its
+/// codec's blocks, coded or not by [`CODED_IN_BLOCKS`]: its edge points keep their Sobel
+/// directions (see `edges::step_gradient`), the block borders around them being no smooth
+/// ramp. Camera frames 1.0–1.4, up to 2.0 under glare's bloom (see above); on the seen `aerial`
+/// sets, `transmission` 320 px lost 17 frames within 2° to ramps taken out under blocks that
+/// showed at 2.0–2.7 (seed 155 frame 23: 2.56, tiles of 16 pixels).
+const BLOCKS_SHOW: f32 = 2.0;
 /// ... and its blocks show across rows and across columns alike, each this many times more
 /// on the grid than off it ([`blocks::Grid::weaker_axis`]): on `synth` seed 1 at 320×240 (a
 /// numpy model of the figure), 2.7 or more on 95 % of `video-link`'s frames and 4.8 or more
