@@ -646,18 +646,16 @@ fn step_gradient(
         let (dx, dy) = (reach * dx, reach * dy);
         Some((sobel_at(x + dx, y + dy)?, sobel_at(x - dx, y - dy)?))
     };
-    let (Some((a, b)), Some((far_a, far_b))) =
-        (either_side(RAMP_REACH), either_side(2 * RAMP_REACH))
-    else {
-        return (gx, gy);
-    };
     // A ramp: alike on both sides, and again twice as far (a stripe's or a texture's
-    // gradients are not). Twice the step's gradient: only its direction is used.
-    let (near, far) = (sum(a, b), sum(far_a, far_b));
-    if alike(a, b) && alike(near, far) {
-        (2 * gx - near.0, 2 * gy - near.1)
-    } else {
-        (gx, gy)
+    // gradients are not); the far side is read only where the near one is alike.
+    let ramp = either_side(RAMP_REACH)
+        .filter(|&(a, b)| alike(a, b))
+        .map(|(a, b)| sum(a, b))
+        .filter(|&near| either_side(2 * RAMP_REACH).is_some_and(|(a, b)| alike(near, sum(a, b))));
+    match ramp {
+        // Twice the step's gradient: only its direction is used.
+        Some((rx, ry)) => (2 * gx - rx, 2 * gy - ry),
+        None => (gx, gy),
     }
 }
 
