@@ -611,14 +611,14 @@ const RAMP_REACH: isize = 3;
 /// its direction stays.
 ///
 /// Only a ramp is taken out: the gradients on the two sides alike, and their sum alike again
-/// twice as far out. A flat sky over textured ground is not one (taken out, the texture's
-/// gradient turned a hazy horizon over noisy fields: `thick_haze_ramp_deeper_than_the_
-/// placement_search_at_320`, 1.6° of pitch out); nor a link's stripes a few working pixels
-/// apart, alike at one reach and not at the other (`stripes_parallel_to_the_horizon_are_
-/// subtracted`, thick haze at 640 px, 4° of roll out). On the seen sets (`aerial` seeds
-/// 137–155 and the tuning sets of seed 1) the test twice as far out adds 15 frames within 2°
-/// to the first test alone, and trusts 15 fewer wrong answers (281 → 266). Unchanged where a
-/// side is out of the image.
+/// twice as far out. A flat sky over textured ground is not one: taken out, the texture's
+/// gradient turned a hazy horizon over noisy fields, 1.6° of pitch out (the test
+/// `thick_haze_ramp_deeper_than_the_placement_search_at_320`). Nor are a link's stripes a few
+/// working pixels apart, alike at one reach and not at the other: 4° of roll out under a
+/// thick haze at 640 px (`stripes_parallel_to_the_horizon_are_subtracted`). On the seen sets
+/// (`aerial` seeds 137–155 and the tuning sets of seed 1) the test twice as far out adds 15
+/// frames within 2° to the first test alone, and trusts 15 fewer wrong answers (281 → 266).
+/// Unchanged where a side is out of the image.
 fn step_gradient(
     grey: &[u8],
     geo: Working,

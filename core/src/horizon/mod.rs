@@ -2012,8 +2012,8 @@ const CODED_IN_BLOCKS: f32 = 2.7;
 /// codec's blocks, coded or not by [`CODED_IN_BLOCKS`]: its edge points keep their Sobel
 /// directions (see `edges::step_gradient`), the block borders around them being no smooth
 /// ramp. Camera frames 1.0–1.4, up to 2.0 under glare's bloom (see above); on the seen `aerial`
-/// sets, `transmission` 320 px lost 17 frames within 2° to ramps taken out under blocks that
-/// showed at 2.0–2.7 (seed 155 frame 23: 2.56, tiles of 16 pixels).
+/// sets, `transmission` 320 px lost 17 frames within 2° to ramps taken out (read at two
+/// pixels) under blocks that showed at 2.0–2.7 (seed 155 frame 23: 2.56, tiles of 16 pixels).
 const BLOCKS_SHOW: f32 = 2.0;
 /// ... and its blocks show across rows and across columns alike, each this many times more
 /// on the grid than off it ([`blocks::Grid::weaker_axis`]): on `synth` seed 1 at 320×240 (a
