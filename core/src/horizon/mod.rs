@@ -716,11 +716,6 @@ impl HorizonDetector {
                 {
                     region::search_near(samples, extent, b.line)
                         .map(|line| (line, &CODED_FRAME_BARS[..]))
-                } else if b.coverage >= CLEAR_SPLIT_UNDER_COVERAGE {
-                    // A line drawn along all its length is one edge across the frame, not the
-                    // fields' edges a clear split corrects: under a sun's glow or glare the
-                    // split near it leans with the glow (see the constant).
-                    None
                 } else {
                     // A faint hazy horizon over fields crossed by roads and hedges: the edge
                     // line follows the fields' edges in the haze, degrees of roll off the
@@ -1990,17 +1985,6 @@ const REGION_RECHECK: f32 = 0.75;
 const REGION_RECHECK_COVERAGE: f32 = 0.8;
 /// ... and its line replaces the edge lines when it explains this many times more.
 const REGION_RECHECK_MARGIN: f32 = 1.15;
-/// The clear split near the best edge line (outside coded frames) is looked for only under a
-/// line drawn along less than this share of its length. On the seen sets (`aerial` seeds
-/// 137–163 and the tuning sets of seed 1, 19022 frames with a horizon), on 59 misses a clear
-/// split had replaced the best edge line, drawn along 0.95–1.00 of its length and within 2° of
-/// the truth: most under glare or a sun's glow, the split leaning into the glow (seed 150
-/// `glare` 640 px frame 36: the horizon drawn along all its length and explaining 0.73, the
-/// split 8° of roll out; without the recheck read within 0.2°, trusted at 0.76). Without the
-/// recheck there: 17346 → 17394 within 2°, right and trusted 13735 → 13831, trusted wrong
-/// 385 → 387 (at 0.9: +53, +106, +5; at 0.98: +44, +78, +2); tuning seeds 2 and 3: −1 and +4
-/// (`synth` `coast` 320 px lost one).
-const CLEAR_SPLIT_UNDER_COVERAGE: f32 = 0.95;
 /// A frame whose luma steps this many times more on an 8-pixel grid than off it
 /// ([`blocks::grid_contrast`]) was coded in blocks, coarsely. On `synth` seed 1 (40 frames a
 /// set, 320×240; `video-link` and `blocks` also at 640×480, seed 1, 20 frames): camera frames
