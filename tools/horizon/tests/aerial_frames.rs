@@ -5,7 +5,7 @@
 mod common;
 
 use common::detect_set;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 /// `(roll, pitch, confidence)` read from the fixture `name` and `(roll, pitch)` of its truth.
 fn read_fixture(name: &str) -> ((f32, f32, f32), (f32, f32)) {
@@ -23,8 +23,7 @@ fn read_fixture(name: &str) -> ((f32, f32, f32), (f32, f32)) {
             .collect()
     };
     let read = second_row(&detect_set(&dir));
-    let truth =
-        second_row(&std::fs::read_to_string(Path::new(&dir).join("truth.csv")).expect("truth"));
+    let truth = second_row(&std::fs::read_to_string(dir.join("truth.csv")).expect("truth"));
     ((read[0], read[1], read[2]), (truth[0], truth[1]))
 }
 
