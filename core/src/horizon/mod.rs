@@ -574,6 +574,7 @@ impl HorizonDetector {
             usize::from(self.config.edge_pixels_per_perimeter_pixel) * perimeter,
             floor,
         );
+        // A coded frame's blocks show too (its grid contrast is over `CODED_IN_BLOCKS`).
         let blocks_show = frame_grid.is_some_and(|g| g.contrast >= BLOCKS_SHOW);
         let edge_stats = edges::collect_edges(
             ws.grey,
@@ -582,7 +583,7 @@ impl HorizonDetector {
             threshold,
             &camera,
             ws.edges,
-            coded.is_none() && !blocks_show,
+            !blocks_show,
         );
         if tiled.is_some() {
             // Back to the deblocked frame for the regions, profiles and textures.
@@ -1999,6 +2000,8 @@ const CODED_IN_BLOCKS: f32 = 2.7;
 /// sets, `transmission` 320 px lost 17 frames within 2° to ramps taken out (read at two
 /// pixels) under blocks that showed at 2.0–2.7 (seed 155 frame 23: 2.56, tiles of 16 pixels).
 const BLOCKS_SHOW: f32 = 2.0;
+// A coded frame shows its blocks: the edge pass reads `coded` through `BLOCKS_SHOW` alone.
+const _: () = assert!(BLOCKS_SHOW <= CODED_IN_BLOCKS);
 /// ... and its blocks show across rows and across columns alike, each this many times more
 /// on the grid than off it ([`blocks::Grid::weaker_axis`]): on `synth` seed 1 at 320×240 (a
 /// numpy model of the figure), 2.7 or more on 95 % of `video-link`'s frames and 4.8 or more
