@@ -39,6 +39,20 @@ const UNEVEN_STEP: f32 = 1.0;
 /// Whether `line` (a horizon line of the full-resolution frame) runs along the frame's rows on
 /// a row boundary where the frame is spliced.
 pub(crate) fn along_row_seam(frame: &Frame<'_>, camera: &Camera, line: HorizonLine) -> bool {
+    near_row_seam(frame, camera, line, 0.5)
+}
+
+/// Whether a level `line`, placed to within `reach` rows (a candidate of the binned working
+/// image is placed to within one of its pixels), runs along a row boundary where the frame is
+/// spliced: any boundary of the grid within `reach` rows of where it crosses the principal
+/// point's column. The boundary between rows r − 1 and r is at r − ½ (pixel centres at the
+/// integers).
+pub(crate) fn near_row_seam(
+    frame: &Frame<'_>,
+    camera: &Camera,
+    line: HorizonLine,
+    reach: f32,
+) -> bool {
     let (sin_roll, cos_roll) = (
         libm::sinf(line.camera_roll_rad),
         libm::cosf(line.camera_roll_rad),
@@ -46,16 +60,27 @@ pub(crate) fn along_row_seam(frame: &Frame<'_>, camera: &Camera, line: HorizonLi
     if libm::fabsf(sin_roll) > LEVEL_SINE {
         return false;
     }
-    // The row boundary nearest to where the line crosses the principal point's column: the
-    // boundary between rows r − 1 and r is at r − ½ (pixel centres at the integers).
     let (_, v) = camera.project(0.0, line.offset / cos_roll);
-    let boundary = libm::roundf(v + 0.5);
-    if !boundary.is_finite() || boundary < 2.0 {
+    if !v.is_finite() {
         return false;
     }
-    let r = boundary as usize;
+    // Rows 2 ..= height − 2 have the two rows either side a boundary is read from.
+    let rows = 2.0..=frame.height() as f32 - 2.0;
+    let (low, high) = (libm::ceilf(v + 0.5 - reach), libm::floorf(v + 0.5 + reach));
+    let (low, high) = (low.max(*rows.start()), high.min(*rows.end()));
+    if !(rows.contains(&low) && rows.contains(&high)) {
+        return false;
+    }
+    let first = (low as usize).div_ceil(BLOCK_ROWS) * BLOCK_ROWS;
+    (first..=high as usize)
+        .step_by(BLOCK_ROWS)
+        .any(|r| spliced_at(frame, r))
+}
+
+/// Whether the frame is spliced at the boundary between rows `r − 1` and `r`.
+fn spliced_at(frame: &Frame<'_>, r: usize) -> bool {
     let (w, h) = (frame.width(), frame.height());
-    if w == 0 || r + 1 >= h || r % BLOCK_ROWS != 0 {
+    if w == 0 || r < 2 || r + 1 >= h || r % BLOCK_ROWS != 0 {
         return false;
     }
     let luma_at = |u: usize, v: usize| {
@@ -159,11 +184,34 @@ mod tests {
     }
 
     #[test]
+    fn a_candidate_placed_within_reach_of_a_seam_is_on_it() {
+        let pixels = grey(|u, v| texture(u, v, if v >= 24 { 5 } else { 0 }));
+        let frame = Frame::grey(W, H, &pixels).expect("fits");
+        let camera = camera();
+        // Two rows below the boundary (a working pixel of a frame binned 2× is two rows).
+        let off = HorizonLine::from_attitude(0.0, libm::atanf((25.5 - camera.cy) / camera.fy));
+        assert!(!along_row_seam(&frame, &camera, off));
+        assert!(near_row_seam(&frame, &camera, off, 2.0));
+        assert!(!near_row_seam(&frame, &camera, off, 1.0));
+    }
+
+    #[test]
     fn lines_near_the_frames_top_and_bottom_are_read_safely() {
         let frame = grey(|_, _| 128);
         for r in [0usize, 1, 2, H - 2, H - 1, H, H + 40] {
             assert!(!seam_at(&frame, level_at(r)));
         }
         assert!(!seam_at(&frame, HorizonLine::from_attitude(0.0, 1.5)));
+        // Any reach, any offset: only the frame's own boundaries are read.
+        let frame = Frame::grey(W, H, &frame).expect("fits");
+        for offset in [f32::NAN, f32::INFINITY, -1e30, 1e30, 0.0] {
+            for reach in [0.5, 4.0, 1e9, f32::INFINITY] {
+                let line = HorizonLine {
+                    camera_roll_rad: 0.0,
+                    offset,
+                };
+                assert!(!near_row_seam(&frame, &camera(), line, reach));
+            }
+        }
     }
 }

@@ -42,3 +42,11 @@ fn assert_within_2_deg(name: &str) {
 fn a_faint_horizon_across_a_sun_glow() {
     assert_within_2_deg("aerial157-glare-320-frame14");
 }
+
+/// Seed 160 `mixed` 320 px frame 26: a link's slice torn sideways across a hazy horizon, its
+/// lower edge a level step along a block row. Before a level candidate on such a seam was
+/// left to the link (`seam::near_row_seam`) read the slice's edge, 18° of roll out.
+#[test]
+fn a_horizon_across_a_torn_slice() {
+    assert_within_2_deg("aerial160-mixed-320-frame26");
+}
