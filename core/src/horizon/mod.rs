@@ -693,8 +693,8 @@ impl HorizonDetector {
         // only when nothing else is, it is not climbed to, and it does not decide whether the
         // region search runs. Under a link's lost slices such a line out-scored a hazy horizon
         // (`aerial` `mixed`, seeds 137–165: 206 of its 710 misses were level lines, the
-        // horizon 2.5° and more of roll from level; with this rule 94 more of its 2320
-        // frames are read within 2°, 15 more trusted wrong).
+        // horizon 2.5° and more of roll from level; with this rule 101 more of its 2320
+        // frames are read within 2°, 16 more trusted wrong).
         let mut seams: [Option<Line>; MAX_CANDIDATES] = [None; MAX_CANDIDATES];
         for (candidate, seam) in scored.iter().zip(seams.iter_mut()) {
             *seam = candidate
@@ -842,6 +842,12 @@ impl HorizonDetector {
                 min_votes,
                 PARALLEL_TURN_DEG,
             ) {
+                // Nor to a seam here (above).
+                Some(upper)
+                    if seam::near_row_seam(frame, &camera, upper.horizon, geo.scale as f32) =>
+                {
+                    break;
+                }
                 Some(upper) => {
                     chosen = self.tracked(upper);
                     climbed = true;
