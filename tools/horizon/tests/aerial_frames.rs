@@ -50,3 +50,13 @@ fn a_faint_horizon_across_a_sun_glow() {
 fn a_horizon_across_a_torn_slice() {
     assert_within_2_deg("aerial160-mixed-320-frame26");
 }
+
+/// Seed 150 `mixed` 320 px frame 12: a sun's glow over a haze band, a link's stripes across
+/// both. The band's top, the horizon, is drawn along three quarters of it (0.76) and the
+/// ground's edge under the band along nearly all of it (0.96). Before a line drawn along 60 %
+/// of its length was climbed to (`DRAWN_ABOVE_COVERAGE`, 0.8 before) read the ground's edge,
+/// 7° of pitch out, trusted.
+#[test]
+fn the_top_of_a_haze_band_drawn_along_most_of_it() {
+    assert_within_2_deg("aerial150-mixed-320-frame12");
+}
