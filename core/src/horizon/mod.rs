@@ -702,6 +702,12 @@ impl HorizonDetector {
                 .map(|s| s.line);
         }
         let not_a_seam = |s: &Scored| !seams.contains(&Some(s.line));
+        // Nor is a seam one of a family of stripes (see `stripe_family`): seams with a nearly
+        // level ground edge made one, and the family kept the climb from that edge to the
+        // horizon above it (on the seen sets 13 more frames within 2°, 8 fewer trusted wrong).
+        let off_seams = |scored: &[Option<Scored>; MAX_CANDIDATES]| {
+            scored.map(|candidate| candidate.filter(|s| not_a_seam(s)))
+        };
 
         // 6b: when no edge line splits the frame, the line that best splits it into two
         // regions (see `region`): interference's stripes out-vote the horizon, whose own edge
@@ -724,7 +730,9 @@ impl HorizonDetector {
         // replace the best edge line.
         let found = match hough_best {
             Some(b) if b.explained >= REGION_TRIGGER => {
-                if b.explained >= REGION_RECHECK || stripe_family(&scored, rho.step).is_some() {
+                if b.explained >= REGION_RECHECK
+                    || stripe_family(&off_seams(&scored), rho.step).is_some()
+                {
                     None
                 } else if b.coverage < REGION_RECHECK_COVERAGE
                     && frame_grid.map_or_else(|| blocks::grid_contrast(frame), |g| g.contrast)
@@ -822,7 +830,7 @@ impl HorizonDetector {
         };
         // The candidates no longer change: their family of stripes, if any, is read once, here
         // and in 7c.
-        let family = stripe_family(&scored, rho.step);
+        let family = stripe_family(&off_seams(&scored), rho.step);
         let mut overtaken = None;
         if !from_region
             && family.is_none_or(|crest| !in_one_family(crest, chosen.line))
