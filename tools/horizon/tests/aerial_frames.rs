@@ -55,7 +55,7 @@ fn a_horizon_across_a_torn_slice() {
 /// both. The band's top, the horizon, is drawn along three quarters of it (0.76) and the
 /// ground's edge under the band along nearly all of it (0.96). Before a line drawn along 60 %
 /// of its length was climbed to (`DRAWN_ABOVE_COVERAGE`, 0.8 before) read the ground's edge,
-/// 7° of pitch out, trusted.
+/// 5° of roll and 7° of pitch out, trusted.
 #[test]
 fn the_top_of_a_haze_band_drawn_along_most_of_it() {
     assert_within_2_deg("aerial150-mixed-320-frame12");
@@ -64,8 +64,8 @@ fn the_top_of_a_haze_band_drawn_along_most_of_it() {
 /// Seed 159 `mixed` 320 px frame 12: a haze band over a nearly level ground edge, with two
 /// level seams of a link's lost slices below. The seams and the edge made a family of
 /// parallel lines, taken for a link's stripes, which kept the climb from the edge to the
-/// band's top (`stripe_family`); before seams were left out of families read the edge, 6° of
-/// pitch out, trusted.
+/// band's top (`stripe_family`); before seams were left out of families read the edge, 5° of
+/// roll and 6° of pitch out, trusted.
 #[test]
 fn seams_make_no_family_of_stripes() {
     assert_within_2_deg("aerial159-mixed-320-frame12");
