@@ -101,7 +101,10 @@ fn assert_read_or_not_trusted(accuracy: &serde_json::Value, min_within: f64) {
 /// ones. The bar stays above the 0.53 without the turn.
 #[test]
 fn a_hazy_horizon_through_a_sensor_and_two_links_is_read_or_not_trusted() {
-    assert_read_or_not_trusted(&chained(16, "320x240", "bayer,analogue,jpeg-half", 34), 0.55);
+    assert_read_or_not_trusted(
+        &chained(16, "320x240", "bayer,analogue,jpeg-half", 34),
+        0.55,
+    );
 }
 
 /// `terrain` `clean` seed 18 at 640×480 through libjpeg (chain seed 123): slices of 16 rows
